@@ -1,0 +1,1 @@
+"""bboxtune tuners: stable-baselines3 agents and non-learned baselines."""

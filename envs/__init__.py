@@ -1,0 +1,1 @@
+"""bboxtune environments, episode sources (simulator, OTB-100 replay) and OTB-standard metrics."""
