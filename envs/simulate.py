@@ -1,0 +1,242 @@
+"""Simulated tracks: constant-velocity truth plus Gauss–Markov coloured measurement noise (CMN).
+
+Model (seed 000 eqs. 1–3, backward Euler; per coordinate, every coordinate independent):
+
+    x_n = F(τ+δ) x_{n−1} + B(τ) w_n,  F(t) = [[1, t], [0, 1]],  B(t) = [t²/2, t]ᵀ,  w_n ~ N(0, σ_w²)  (1)
+    v_n = ψ v_{n−1} + ξ_n,           ξ_n ~ N(0, σ_ξ²),  v_0 ~ N(0, σ_ξ²/(1 − ψ²)) (stationary start)  (2)
+    y_n = H x_n + v_n,               H = [1, 0]                                                     (3)
+
+The truth may use F(τ + δ) while the filters assume F(τ): seed 004's sampling-time error δ enters the
+transition matrix only (its eqs. 1 and 4: A has dt + δ, the process noise is unchanged), so B stays B(τ).
+Frame 0 holds the initial state ``x0`` exactly (P0 = 0, as seed 000).
+
+Box tracks (``ndim = 4``, coordinates cx, cy, w, h in px): cx and cy follow (1) with σ_w. The sizes follow the
+same model in log space, ℓ = log(w / w_0) with ℓ_0 = 0, ℓ̇_0 = ẇ_0 / w_0 and acceleration noise
+``sigma_w_log_size`` (1/s²), so w = w_0 exp(ℓ) stays positive and changes slowly (the std of ℓ after t seconds is
+about σ t^1.5/√3: 0.14 after 25 s at the default 0.002). The true size velocity is ẇ = w ℓ̇. The CMN (2) is
+added to all four coordinates, with σ_ξ on cx, cy and ``size_noise_ratio``·σ_ξ on w, h; measured sizes can
+therefore be <= 0 when the noise is large compared with the box (the metrics score such boxes as empty).
+
+Everything is drawn from the ``numpy.random.Generator`` passed in, so an episode is reproducible from its seed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+from scipy.signal import lfilter
+
+_NDIMS = (1, 2, 4)  # scalar two-state, centroid (cx, cy), box (cx, cy, w, h)
+_DEFAULT_BOX_X0 = (320.0, 240.0, 64.0, 48.0, 0.0, 0.0, 0.0, 0.0)  # px, px/s: a 64×48 box at a VGA centre
+
+
+class Track(NamedTuple):
+    """One episode's data (or a batch, with a leading axis B). NaN marks missing truth / measurements."""
+
+    truth: np.ndarray  # (T, M) true measured quantities: positions; boxes (cx, cy, w, h) px
+    truth_state: np.ndarray  # (T, K) true state in the filters' layout [p_1 … p_M, v_1 … v_M]
+    y: np.ndarray  # (T, M) measurements, same coordinates as ``truth``
+    tau: float  # s, sampling interval the filters should assume
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One simulation set-up. Units in the comments; validated on construction."""
+
+    psi: float = 0.0  # CMN colouredness ψ, 0 <= ψ < 1 (0 = white noise)
+    sigma_w: float = 1.0  # px/s² (m/s² in the papers): acceleration noise std of positions
+    sigma_xi: float = 1.0  # px (m): std of the white noise ξ driving the CMN on positions
+    tau: float = 0.05  # s: sampling interval the filters assume
+    n_frames: int = 500  # T, frames per track (>= 2)
+    ndim: int = 4  # 1: scalar two-state [p, v]; 2: centroid (cx, cy); 4: box (cx, cy, w, h)
+    delta: float = 0.0  # s: sampling-time error; the truth evolves with τ + δ (seed 004), τ + δ > 0
+    x0: tuple[float, ...] | None = None  # (2·ndim,) initial true state [p…, v…]; None: zeros, or a 64×48 box
+    sigma_w_log_size: float = 0.002  # 1/s²: acceleration noise std of log w and log h (ndim 4)
+    size_noise_ratio: float = 0.5  # σ_ξ of the w, h measurements as a fraction of sigma_xi (ndim 4)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.psi) and 0.0 <= self.psi < 1.0):
+            raise ValueError(f"psi={self.psi!r} is out of range: allowed 0 <= psi < 1")
+        for name in ("sigma_w", "sigma_xi", "tau", "sigma_w_log_size", "size_noise_ratio"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name}={value!r} is out of range: allowed finite values > 0")
+        if self.ndim not in _NDIMS:
+            raise ValueError(f"ndim={self.ndim!r} is out of range: allowed {_NDIMS}")
+        if not isinstance(self.n_frames, (int, np.integer)) or self.n_frames < 2:
+            raise ValueError(f"n_frames={self.n_frames!r} is out of range: allowed integers >= 2")
+        if not (math.isfinite(self.delta) and self.tau + self.delta > 0):
+            raise ValueError(f"delta={self.delta!r} is out of range: allowed finite with tau + delta > 0")
+        x0 = self.initial_state
+        if x0.shape != (self.K,) or not np.all(np.isfinite(x0)):
+            raise ValueError(f"x0={self.x0!r} must be {self.K} finite values [positions…, velocities…]")
+        if self.ndim == 4 and np.any(x0[2:4] <= 0):
+            raise ValueError(f"x0={self.x0!r}: box sizes x0[2], x0[3] must be > 0 px")
+
+    @property
+    def M(self) -> int:
+        """Measurement size (= ndim)."""
+        return self.ndim
+
+    @property
+    def K(self) -> int:
+        """State size (= 2·ndim)."""
+        return 2 * self.ndim
+
+    @property
+    def initial_state(self) -> np.ndarray:
+        """x0 as a (K,) array, with the documented default when ``x0`` is None."""
+        if self.x0 is not None:
+            return np.asarray(self.x0, dtype=float)
+        return np.array(_DEFAULT_BOX_X0) if self.ndim == 4 else np.zeros(self.K)
+
+
+def constant_velocity_paths(
+    p0: np.ndarray,
+    v0: np.ndarray,
+    sigma_w: np.ndarray,
+    tau: float,
+    delta: float,
+    n_frames: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities of x_n = F(τ + δ) x_{n−1} + B(τ) w_n for independent coordinates, by cumsums.
+
+    ``p0``, ``v0`` are (B, C) and ``sigma_w`` (C,); returns two (B, T, C) arrays with frame 0 = (p0, v0)."""
+    p0, v0 = np.asarray(p0, dtype=float), np.asarray(v0, dtype=float)
+    w = rng.standard_normal((p0.shape[0], n_frames - 1, p0.shape[1])) * np.asarray(sigma_w, dtype=float)
+    v = np.concatenate([v0[:, None], v0[:, None] + tau * np.cumsum(w, axis=1)], axis=1)  # v_n = v_{n−1} + τ w_n (1)
+    steps = (tau + delta) * v[:, :-1] + 0.5 * tau**2 * w  # p_n − p_{n−1} = (τ + δ) v_{n−1} + τ²/2 w_n (1)
+    p = np.concatenate([p0[:, None], p0[:, None] + np.cumsum(steps, axis=1)], axis=1)
+    return p, v
+
+
+def gauss_markov(psi: float, sigma_xi: np.ndarray, shape: tuple[int, int, int], rng: np.random.Generator) -> np.ndarray:
+    """Stationary CMN (2) shaped (B, T, C) with per-coordinate ξ std ``sigma_xi`` (C,) along axis 1."""
+    e = rng.standard_normal(shape) * np.asarray(sigma_xi, dtype=float)
+    e[:, 0] /= math.sqrt(1.0 - psi**2)  # v_0 ~ N(0, σ_ξ²/(1 − ψ²)), the stationary law
+    if psi == 0.0:
+        return e
+    return lfilter([1.0], [1.0, -psi], e, axis=1)  # v_n = ψ v_{n−1} + ξ_n (2)
+
+
+def simulate(scenario: Scenario, rng: np.random.Generator, n_tracks: int | None = None) -> Track:
+    """Draw one track (``n_tracks=None``: arrays (T, ·)) or a batch of independent tracks (arrays (B, T, ·)).
+
+    >>> tr = simulate(PRESETS["seed000_two_state"], np.random.default_rng(0))
+    >>> tr.truth.shape, tr.truth_state.shape, tr.y.shape, tr.tau
+    ((2000, 1), (2000, 2), (2000, 1), 0.05)
+    """
+    if n_tracks is not None and (not isinstance(n_tracks, (int, np.integer)) or n_tracks < 1):
+        raise ValueError(f"n_tracks={n_tracks!r} is out of range: allowed None or an integer >= 1")
+    s, B, T, M = scenario, 1 if n_tracks is None else int(n_tracks), scenario.n_frames, scenario.M
+    x0 = s.initial_state
+    if M == 4:
+        sizes0 = x0[2:4]
+        p0 = np.concatenate([x0[:2], [0.0, 0.0]])  # log sizes ℓ start at 0
+        v0 = np.concatenate([x0[4:6], x0[6:8] / sizes0])  # ℓ̇_0 = ẇ_0 / w_0
+        sigma = np.array([s.sigma_w, s.sigma_w, s.sigma_w_log_size, s.sigma_w_log_size])
+    else:
+        p0, v0, sigma = x0[:M], x0[M:], np.full(M, s.sigma_w)
+    p, v = constant_velocity_paths(np.tile(p0, (B, 1)), np.tile(v0, (B, 1)), sigma, s.tau, s.delta, T, rng)
+    if M == 4:
+        sizes = sizes0 * np.exp(p[..., 2:])  # w = w_0 exp(ℓ)
+        p = np.concatenate([p[..., :2], sizes], axis=-1)
+        v = np.concatenate([v[..., :2], sizes * v[..., 2:]], axis=-1)  # ẇ = w ℓ̇
+        sigma_xi = s.sigma_xi * np.array([1.0, 1.0, s.size_noise_ratio, s.size_noise_ratio])
+    else:
+        sigma_xi = np.full(M, s.sigma_xi)
+    y = p + gauss_markov(s.psi, sigma_xi, (B, T, M), rng)  # (3)
+    state = np.concatenate([p, v], axis=-1)
+    if n_tracks is None:
+        return Track(truth=p[0], truth_state=state[0], y=y[0], tau=s.tau)
+    return Track(truth=p, truth_state=state, y=y, tau=s.tau)
+
+
+def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
+    return float(rng.uniform(bounds[0], bounds[1])) if bounds[1] > bounds[0] else float(bounds[0])
+
+
+def _log_uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
+    return float(math.exp(_uniform(rng, (math.log(bounds[0]), math.log(bounds[1])))))
+
+
+@dataclass(frozen=True)
+class ScenarioRanges:
+    """A distribution over :class:`Scenario`: each field is an inclusive (low, high) range; low == high fixes it.
+
+    ψ, τ and δ are uniform; σ_w, σ_ξ and the initial box sizes are log-uniform; ``n_frames`` is a uniform
+    integer. The default duration is at most 1000 × 0.05 s = 50 s, which keeps log-size growth moderate."""
+
+    psi: tuple[float, float] = (0.0, 0.95)  # uniform, 0 <= ψ < 1
+    sigma_w: tuple[float, float] = (1.0, 100.0)  # px/s², log-uniform
+    sigma_xi: tuple[float, float] = (0.5, 10.0)  # px, log-uniform
+    tau: tuple[float, float] = (1 / 30, 0.05)  # s, uniform (30 to 20 frames per second)
+    n_frames: tuple[int, int] = (200, 1000)  # frames, uniform integer
+    delta: tuple[float, float] = (0.0, 0.0)  # s, uniform
+    size: tuple[float, float] = (20.0, 200.0)  # px, initial w and h (independent, log-uniform), ndim 4
+    ndim: int = 4  # 1, 2 or 4 (see Scenario)
+
+    def __post_init__(self) -> None:
+        for name in ("psi", "sigma_w", "sigma_xi", "tau", "n_frames", "delta", "size"):
+            low, high = getattr(self, name)
+            if not (math.isfinite(low) and math.isfinite(high) and low <= high):
+                raise ValueError(f"{name}={(low, high)!r} must be a finite range with low <= high")
+        for name in ("sigma_w", "sigma_xi", "size"):
+            if getattr(self, name)[0] <= 0:
+                raise ValueError(f"{name}={getattr(self, name)!r}: log-uniform ranges need low > 0")
+        Scenario(psi=self.psi[1], tau=self.tau[0], delta=self.delta[0], ndim=self.ndim)  # range ends valid
+        Scenario(psi=self.psi[0], tau=self.tau[1], delta=self.delta[1], n_frames=int(self.n_frames[0]))
+
+    def sample(self, rng: np.random.Generator) -> Scenario:
+        """Draw one scenario (the x0 of a box puts a box of random size at rest at (320, 240))."""
+        x0 = None
+        if self.ndim == 4:
+            x0 = (320.0, 240.0, _log_uniform(rng, self.size), _log_uniform(rng, self.size), 0.0, 0.0, 0.0, 0.0)
+        return Scenario(
+            psi=_uniform(rng, self.psi),
+            sigma_w=_log_uniform(rng, self.sigma_w),
+            sigma_xi=_log_uniform(rng, self.sigma_xi),
+            tau=_uniform(rng, self.tau),
+            n_frames=int(rng.integers(self.n_frames[0], self.n_frames[1], endpoint=True)),
+            ndim=self.ndim,
+            delta=_uniform(rng, self.delta),
+            x0=x0,
+        )
+
+
+def _box_x0(x: float, y: float, w: float, h: float) -> tuple[float, ...]:
+    """Initial box state at rest from an OTB first box (x, y, w, h)."""
+    return (x + w / 2, y + h / 2, w, h, 0.0, 0.0, 0.0, 0.0)
+
+
+_SEED000_TWO_STATE = Scenario(psi=0.0, sigma_w=50.0, sigma_xi=4.0, tau=0.05, n_frames=2000, ndim=1, x0=(1.0, 1.0))
+_SEED001_SIM = Scenario(psi=0.0, sigma_w=4.0, sigma_xi=3.0, tau=0.05, n_frames=1000, ndim=4)
+_SEED004 = Scenario(psi=0.0, sigma_w=0.2, sigma_xi=10.0, tau=1.0, n_frames=500, ndim=2)
+
+PRESETS: dict[str, Scenario] = {
+    # Seed 000 §II.D: two-state track, σ_w = 50 m/s², σ_ξ = 4 m, τ = 0.05 s, 2000 points, x0 = [1, 1]ᵀ, P0 = 0.
+    # The paper sweeps ψ over [0, 0.95]; use dataclasses.replace(PRESETS[...], psi=...).
+    "seed000_two_state": _SEED000_TWO_STATE,
+    # Seed 000 §III (Car4): τ = 0.05 s, σ_w = 3, σ_ξ = 2, ψ ≈ 0.9, as a box track starting from Car4's first
+    # box (70, 51, 107, 87) for Car4's 659 frames.
+    "seed000_car4": Scenario(psi=0.9, sigma_w=3.0, sigma_xi=2.0, tau=0.05, n_frames=659, ndim=4,
+                             x0=_box_x0(70, 51, 107, 87)),
+    # Seed 001 §9.1 simulated data 1 (σ_w = 4, σ_ξ = 3, 1000 points, T = 0.05 s; N_opt = 15) and 2 (σ_w = 45,
+    # σ_ξ = 25; N_opt = 10). ψ, x0 and the box sizes are lost in our text copy of the paper: white noise
+    # (ψ = 0) and the default 64×48 box are our choice.
+    "seed001_sim1": _SEED001_SIM,
+    "seed001_sim2": replace(_SEED001_SIM, sigma_w=45.0, sigma_xi=25.0),
+    # Seed 001 §9.2 "SUV" tuning: σ_w = 10, σ_ξ = 5, T = 0.05 s (N_opt = √(12·5/(0.05²·10)) = 49, as reported),
+    # as a box track from the OTB Suv first box (142, 125, 91, 40) for its 945 frames; ψ = 0 (not recoverable).
+    "seed001_suv": Scenario(psi=0.0, sigma_w=10.0, sigma_xi=5.0, tau=0.05, n_frames=945, ndim=4,
+                            x0=_box_x0(142, 125, 91, 40)),
+    # Seed 004 Table I: 2-D centroid (x, y) CV track in pixels with time in frames (τ = 1) and sampling-time
+    # error δ = 0 or 10 in F. The paper gives no q, r or length: white noise σ_ξ = 10 px, σ_w = 0.2 px/frame²
+    # (a KF then has RMSE ≈ 6 px at δ = 0, near the paper's 6.88) and 500 frames are our choice.
+    "seed004_delta0": _SEED004,
+    "seed004_delta10": replace(_SEED004, delta=10.0),
+}
