@@ -1,0 +1,267 @@
+"""Batched Kalman recursions shared by ``kf`` and ``kf_cmn`` (one two-state coordinate per channel).
+
+The gain of a linear Kalman filter does not depend on the data, only on the model, the noise parameters,
+the prior covariance and which frames have a measurement. So the covariance recursion runs once per *unique*
+(parameters, prior covariance, frame-kind sequence) "row", vectorised over rows, and stops as soon as every
+row has reached its steady state (the posterior covariance repeats bit for bit and no frame kind changes
+later). Each frame's predict + update is then one affine map per channel,
+
+    x_n = M_n x_{n-1} + g_n m_n,                     M_n = (I − K_n D_n) A_n,  g_n = (I − K_n D_n) Λ_n + K_n
+
+(from x⁻ = A x_{n-1} + Λ m_n and x_n = x⁻ + K (m_n − D x⁻)), applied to all channels at once; only the time
+loop is Python. ``m_n`` is the scalar measurement a frame uses (``y_n``, or ``z_n = y_n − ψ y_{n-1}`` for
+KF-CMN), ``D`` its observation row, ``A``/``Λ`` the (de-correlated) transition and input gain.
+
+Frame kinds (per channel and frame):
+
+* ``WAIT``   — no prior given and no finite measurement yet: output NaN.
+* ``INIT``   — first finite measurement without a prior: x = [y_n, 0], P = the start covariance.
+* ``PREDICT``— no usable measurement: x = F x, P = F P Fᵀ + Q (missing data).
+* ``UPDATE_Y``— predict, then a standard update on y_n (D = H).
+* ``UPDATE_Z``— KF-CMN: de-correlated predict + update on the differenced z_n (seed 000 Algorithm 1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from filters.base import split_covariance, split_state
+
+WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)
+N_KINDS = 5
+
+# Without a prior, the velocity starts at 0 with std VELOCITY_PRIOR_SCALE · σ_pos / τ: a million times the
+# variance of the two-point velocity estimate, so the second measurement fixes the velocity (prior weight
+# < 2e-6) while the covariance stays well inside float64 range.
+VELOCITY_PRIOR_SCALE = 1e3
+
+
+@dataclass(frozen=True)
+class StepTables:
+    """Per frame kind and row (kind first, row G last): x⁻ = A x + Λ m, update with row D, variance R."""
+
+    A: np.ndarray  # (5, 2, 2, G) transition used by the predict
+    Q: np.ndarray  # (5, 2, 2, G) process noise covariance of that predict
+    Lam: np.ndarray  # (5, 2, G) input gain on the measurement (Λ of seed 000 eq. 10; 0 for a plain KF)
+    D: np.ndarray  # (5, 2, G) observation row (0 for PREDICT: gain 0, covariance unchanged)
+    R: np.ndarray  # (5, G) measurement noise variance (1 where unused)
+
+
+def plain_tables(F: np.ndarray, Q: np.ndarray, R_y: np.ndarray, H: np.ndarray) -> StepTables:
+    """Tables for a standard KF: every kind predicts with (F, Q); UPDATE_Y updates with (H, R_y).
+
+    ``Q`` (2, 2, G), ``R_y`` (G,); the UPDATE_Z entries equal the UPDATE_Y ones until a caller replaces them."""
+    G = len(R_y)
+    A = np.broadcast_to(F[:, :, None], (N_KINDS, 2, 2, G)).copy()
+    Qk = np.broadcast_to(Q, (N_KINDS, 2, 2, G)).copy()
+    Lam = np.zeros((N_KINDS, 2, G))
+    D = np.zeros((N_KINDS, 2, G))
+    D[[UPDATE_Y, UPDATE_Z]] = H[:, None]
+    R = np.ones((N_KINDS, G))
+    R[[UPDATE_Y, UPDATE_Z]] = R_y
+    return StepTables(A=A, Q=Qk, Lam=Lam, D=D, R=R)
+
+
+def frame_kinds(finite: np.ndarray, prior: bool, differenced: bool = False) -> np.ndarray:
+    """Kind of every frame (C, T) from the finite-measurement mask (C, T).
+
+    The first finite measurement is a standard update (``prior``) or the initialisation (no prior); later
+    finite frames update on y (``differenced=False``) or, when y_{n-1} is finite too, on the differenced
+    z_n (``differenced=True``; without y_{n-1} there is no z_n and the frame is predict-only)."""
+    T = finite.shape[1]
+    frames = np.arange(T)
+    first_index = np.where(finite.any(axis=1), np.argmax(finite, axis=1), T)[:, None]
+    first = frames == first_index
+    kinds = np.full(finite.shape, PREDICT, dtype=np.int8)
+    if differenced:
+        previous = np.zeros_like(finite)
+        previous[:, 1:] = finite[:, :-1]
+        kinds[finite & previous] = UPDATE_Z
+    else:
+        kinds[finite & ~first] = UPDATE_Y
+    kinds[first] = UPDATE_Y if prior else INIT
+    if not prior:
+        kinds[frames < first_index] = WAIT
+    return kinds
+
+
+def channel_start(x0: np.ndarray | None, P0: np.ndarray | None, M: int, n_channels: int,
+                  var_position: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """Start state (C, 2) and covariance (C, 2, 2) of every channel (channel c = coordinate c % M).
+
+    ``x0``/``P0`` are full-model (K,)/(K, K) arrays or None. The covariance is that of the prior x0 when x0
+    is given, else that of the state initialised from the first finite measurement. ``P0=None`` →
+    diag(var_position, (VELOCITY_PRIOR_SCALE² · var_position / τ²)) per channel."""
+    coord = np.arange(n_channels) % M
+    x_start = np.zeros((n_channels, 2)) if x0 is None else split_state(x0, M)[coord]
+    if P0 is None:
+        P_start = np.zeros((n_channels, 2, 2))
+        P_start[:, 0, 0] = var_position
+        P_start[:, 1, 1] = VELOCITY_PRIOR_SCALE**2 * var_position / tau**2
+    else:
+        P_start = split_covariance(P0, M)[coord]
+    return x_start, P_start
+
+
+def gain_recursion(kinds: np.ndarray, tables: StepTables, P_start: np.ndarray) -> tuple[np.ndarray, int]:
+    """Affine coefficients (T, 6, G) = [M00, M01, M10, M11, g0, g1] of every row and frame, and the frame
+    from which every row's coefficients stay constant (T if they never settle).
+
+    ``kinds`` (G, T), ``P_start`` (2, 2, G): the prior before frame 0 (PREDICT/UPDATE kinds) and the
+    covariance at WAIT/INIT frames. Matrices are stored row-last, (2, 2, G), so that one einsum handles all
+    rows. Stops early once all rows are in steady state."""
+    G, T = kinds.shape
+    rows = np.arange(G)
+    eye = np.eye(2)[:, :, None]
+    coef = np.empty((T, 6, G))
+    settled = np.all(kinds == kinds[:, -1:], axis=1)
+    settled_from = np.where(settled, 0, T - np.argmax(kinds[:, ::-1] != kinds[:, -1:], axis=1)).max()
+    uniform = np.all(kinds == kinds[:1], axis=0)  # frames where every row has the same kind
+    resets = np.any(kinds <= INIT, axis=0)  # frames where some row waits or initialises
+    tabs = (tables.A, tables.Q, tables.Lam, tables.D, tables.R)
+    P = P_start.copy()
+    for n in range(T):
+        k = kinds[:, n]
+        if uniform[n]:
+            A, Q, Lam, D, R = (t[k[0]] for t in tabs)
+        else:
+            A, Q, Lam, D, R = (np.moveaxis(t[k, ..., rows], 0, -1) for t in tabs)
+        P_prior = np.einsum("ijg,jkg,lkg->ilg", A, P, A) + Q  # P⁻ = A P Aᵀ + Q (seed 000 Alg. 1 line 5)
+        PDt = np.einsum("ijg,jg->ig", P_prior, D)
+        S = np.einsum("ig,ig->g", D, PDt) + R  # S = D P⁻ Dᵀ + R (Alg. 1 line 6)
+        K = PDt / S  # K = P⁻ Dᵀ S⁻¹ (Alg. 1 line 7)
+        I_KD = eye - K[:, None] * D[None]
+        # Joseph form (I − KD) P⁻ (I − KD)ᵀ + K R Kᵀ, = (I − KD) P⁻ (Alg. 1 line 10) for the optimal K
+        P_new = np.einsum("ijg,jkg,lkg->ilg", I_KD, P_prior, I_KD) + R * K[:, None] * K[None]
+        coef[n, :4] = np.einsum("ijg,jkg->ikg", I_KD, A).reshape(4, G)  # M = (I − K D) A
+        coef[n, 4:] = np.einsum("ijg,jg->ig", I_KD, Lam) + K  # g = (I − K D) Λ + K
+        if resets[n]:
+            reset = k <= INIT
+            P_new[:, :, reset] = P_start[:, :, reset]
+            frame = coef[n]
+            frame[:, reset] = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 0.0])[:, None]  # x = [m, 0] (INIT)
+            frame[4, k == WAIT] = 0.0  # x = 0 (WAIT; output NaN)
+        # P_n = P_{n-1} and no kind changes later: every later frame repeats frame n
+        if n % 8 == 7 and n >= settled_from and np.array_equal(P_new, P):
+            coef[n + 1:] = coef[n]
+            return coef, n
+        P = P_new
+    return coef, T
+
+
+def apply_affine(coef: np.ndarray, steady_from: int, row_of_channel: np.ndarray, m: np.ndarray,
+                 x_start: np.ndarray) -> np.ndarray:
+    """Run x_n = M_n x_{n-1} + g_n m_n for every channel: ``coef`` (T, 6, G) constant from frame
+    ``steady_from`` on, ``m`` (C, T) with 0 where a frame has no measurement, ``x_start`` (C, 2).
+    Returns (C, T, 2). With a single row (G = 1) the steady part is applied in blocks of frames."""
+    C, T = m.shape
+    G = coef.shape[2]
+    m_t = np.ascontiguousarray(m.T)
+    out = np.empty((T, 2, C))
+    p, v = x_start[:, 0], x_start[:, 1]
+    stop = steady_from if G == 1 else T
+    steady = coef[min(steady_from, T - 1)].take(row_of_channel, axis=1)
+    for n in range(stop):
+        c = coef[n] if G == 1 else coef[n].take(row_of_channel, axis=1) if n < steady_from else steady
+        p, v = c[0] * p + c[1] * v + c[4] * m_t[n], c[2] * p + c[3] * v + c[5] * m_t[n]
+        out[n, 0] = p
+        out[n, 1] = v
+    if stop < T:
+        out[stop:] = _steady_blocks(coef[stop, :4, 0].reshape(2, 2), coef[stop, 4:, 0], np.stack([p, v]), m_t[stop:])
+    return out.transpose(2, 0, 1)
+
+
+def _steady_blocks(M: np.ndarray, g: np.ndarray, x_prev: np.ndarray, m: np.ndarray, block: int = 16) -> np.ndarray:
+    """x_n = M x_{n-1} + g m_n with constant M (2, 2), g (2,) for all channels, ``block`` frames per matrix
+    product: within a block, x_{b+i} = M^{i+1} x_{b-1} + Σ_{j<=i} M^{i-j} g m_{b+j}.
+    ``x_prev`` (2, C), ``m`` (T, C) → (T, 2, C)."""
+    T, C = m.shape
+    L = min(block, T)
+    powers = np.empty((L + 1, 2, 2))  # M^0 … M^L
+    powers[0] = np.eye(2)
+    for i in range(L):
+        powers[i + 1] = M @ powers[i]
+    impulse = powers[:L] @ g  # (L, 2): M^i g
+    lag = np.arange(L)[:, None] - np.arange(L)[None, :]
+    toeplitz = np.where(lag[:, None, :] >= 0, impulse[np.clip(lag, 0, None)].transpose(0, 2, 1), 0.0)
+    toeplitz = toeplitz.reshape(2 * L, L)  # row (i, component), column j
+    propagate = powers[1:].reshape(2 * L, 2)  # row (i, component): M^{i+1}
+    out = np.empty((T, 2, C))
+    for b in range(0, T, L):
+        n = min(L, T - b)
+        block_out = propagate[: 2 * n] @ x_prev + toeplitz[: 2 * n, :n] @ m[b : b + n]
+        out[b : b + n] = block_out.reshape(n, 2, C)
+        x_prev = out[b + n - 1]
+    return out
+
+
+def _group_rows(key: np.ndarray, kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Channels with equal ``key`` (C, k) uint64 columns and equal ``kinds`` (C, T) share one row.
+
+    Returns (index of one channel per row (G,), row of every channel (C,)). Kind sequences are compared
+    through a 64-bit polynomial hash, then checked exactly (falling back to exact grouping on a collision)."""
+    C, T = kinds.shape
+    if np.array_equal(kinds, np.broadcast_to(kinds[:1], kinds.shape)):
+        hashed = np.zeros(C, dtype=np.uint64)  # one kind sequence for all channels (the usual case)
+    else:
+        weights = np.random.default_rng(0).integers(1, 2**63, size=T, dtype=np.uint64) | np.uint64(1)
+        with np.errstate(over="ignore"):
+            hashed = (kinds.astype(np.uint64) * weights).sum(axis=1, dtype=np.uint64)
+    cols = np.concatenate([key, hashed[:, None]], axis=1)
+    order = np.lexsort(cols.T[::-1])
+    ordered = cols[order]
+    new_row = np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]
+    row_of_channel = np.empty(C, dtype=np.intp)
+    row_of_channel[order] = np.cumsum(new_row) - 1
+    first_of_row = order[new_row]
+    if not np.array_equal(kinds, kinds[first_of_row][row_of_channel]):  # hash collision: exact grouping
+        exact = np.concatenate([key.view(np.uint8), kinds.view(np.uint8)], axis=1)
+        _, first_of_row, row_of_channel = np.unique(exact, axis=0, return_index=True, return_inverse=True)
+        row_of_channel = row_of_channel.ravel()
+    return first_of_row, row_of_channel
+
+
+def filter_channels(m: np.ndarray, kinds: np.ndarray, row_params: np.ndarray, x_start: np.ndarray,
+                    P_start: np.ndarray, build_tables: Callable[[np.ndarray], StepTables]) -> np.ndarray:
+    """Filter channels (C, T) that share one model up to their parameters.
+
+    ``row_params`` (C, n): the per-channel parameters the tables depend on; ``build_tables(params (G, n))``
+    returns the :class:`StepTables` of G unique rows. Channels with equal parameters, start covariance and
+    frame kinds share one gain sequence. Returns posterior states (C, T, 2), NaN at WAIT frames."""
+    C = m.shape[0]
+    key = np.concatenate([row_params.reshape(C, -1), P_start.reshape(C, 4)], axis=1)
+    first_of_row, row_of_channel = _group_rows(np.ascontiguousarray(key).view(np.uint64), kinds)
+    coef, steady_from = gain_recursion(
+        kinds[first_of_row], build_tables(row_params[first_of_row]), P_start[first_of_row].transpose(1, 2, 0)
+    )
+    states = apply_affine(coef, steady_from, row_of_channel, m, x_start)
+    if np.any(kinds[:, 0] == WAIT):  # WAIT frames lead a channel's sequence
+        states[kinds == WAIT] = np.nan
+    return states
+
+
+def check_prior(x0: object, P0: object, K: int, M: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Validate the full-model prior: ``x0`` None or finite (K,); ``P0`` None or finite symmetric positive
+    semi-definite (K, K) that does not couple different coordinates."""
+    x = None
+    if x0 is not None:
+        x = np.asarray(x0, dtype=float)
+        if x.shape != (K,) or not np.all(np.isfinite(x)):
+            raise ValueError(f"x0={x0!r} (shape {x.shape}) is invalid: allowed None or a finite array of shape ({K},)")
+    P = None
+    if P0 is not None:
+        P = np.asarray(P0, dtype=float)
+        if P.shape != (K, K) or not np.all(np.isfinite(P)):
+            raise ValueError(f"P0 has shape {P.shape}: allowed None or a finite array of shape ({K}, {K})")
+        scale = np.max(np.abs(P))
+        if np.max(np.abs(P - P.T)) > 1e-12 * scale:
+            raise ValueError(f"P0 is not symmetric (max |P0 − P0ᵀ| = {np.max(np.abs(P - P.T)):.3g}); allowed: "
+                             "a symmetric positive semi-definite matrix")
+        low = np.linalg.eigvalsh(P).min()
+        if low < -1e-12 * scale:
+            raise ValueError(f"P0 has eigenvalue {low:.3g} < 0; allowed: a symmetric positive semi-definite matrix")
+        split_covariance(P, M)
+    return x, P

@@ -1,0 +1,71 @@
+"""Standard Kalman filter (seed 001 §"Kalman filter" / seed 002 Algorithm 1; notes §1.0), batched.
+
+Per coordinate: ``F = [[1, τ], [0, 1]]``, ``H = [1, 0]``, ``Q = σ_w² B Bᵀ`` with ``B = [τ²/2, τ]ᵀ``,
+``R = σ_v²``.
+
+Conventions
+-----------
+* Predict-first like filterpy: ``x0``/``P0`` are the prior *before* frame 0, and every frame runs
+  predict then update, so with x0/P0 given the output equals filterpy's ``KalmanFilter`` loop
+  ``predict(); update(y_n)`` (tested to 1e-9).
+* ``x0=None``: the state is initialised at each channel's first finite measurement n0 as
+  ``[y_{n0}, 0]`` with covariance ``P0`` (its per-coordinate blocks) or, for ``P0=None``,
+  ``diag(σ_v², (10³ σ_v / τ)²)`` — position as measured, velocity effectively unknown (the next
+  measurement sets it). Frames before n0 are NaN (no information yet); output is finite from n0 on.
+* ``x0`` given, ``P0=None``: the prior covariance is that same diag(σ_v², (10³ σ_v / τ)²).
+* NaN in y = missing: predict only (filterpy ``update(None)``).
+* Output: posterior ``[positions, velocities]`` at every frame, float64.
+
+Speed: the gains are computed once per unique (σ_w, σ_v, missing pattern) and stop being recomputed once
+they reach steady state (:mod:`filters.kalman_core`); all channels are then filtered together.
+
+>>> import numpy as np, filters
+>>> kf = filters.make("kf", filters.constant_velocity(0.05), sigma_w=50.0, sigma_v=4.0)
+>>> kf.run(np.array([[1.0], [1.1], [np.nan], [1.3]])).round(3)
+array([[1. , 0. ],
+       [1.1, 2. ],
+       [1.2, 2. ],
+       [1.3, 2. ]])
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from filters.base import Filter
+from filters.kalman_core import StepTables, channel_start, check_prior, filter_channels, frame_kinds, plain_tables
+from filters.validation import check_positive
+
+
+class KF(Filter):
+    """Kalman filter. Parameters: ``sigma_w`` (acceleration noise std, units/s², per track), ``sigma_v``
+    (measurement noise std, units, per track), ``x0`` (K,) and ``P0`` (K, K) prior (see module docstring)."""
+
+    name: ClassVar[str] = "kf"
+    DEFAULTS: ClassVar[dict[str, Any]] = {"sigma_w": 1.0, "sigma_v": 1.0, "x0": None, "P0": None}
+    PER_TRACK: ClassVar[tuple[str, ...]] = ("sigma_w", "sigma_v")
+
+    def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
+        x0, P0 = check_prior(params["x0"], params["P0"], self.model.K, self.model.M)
+        return {
+            "sigma_w": check_positive("sigma_w", params["sigma_w"]),
+            "sigma_v": check_positive("sigma_v", params["sigma_v"]),
+            "x0": x0,
+            "P0": P0,
+        }
+
+    def _run_axes(self, z: np.ndarray, params: dict[str, Any]) -> np.ndarray:
+        axis = self.model.axis()
+        var_v = params["sigma_v"] ** 2
+        x_start, P_start = channel_start(params["x0"], params["P0"], self.model.M, z.shape[0], var_v, axis.tau)
+        finite = ~np.isnan(z)
+        kinds = frame_kinds(finite, prior=params["x0"] is not None)
+        row_params = np.stack([params["sigma_w"], params["sigma_v"]], axis=1)
+
+        def tables(p: np.ndarray) -> StepTables:
+            Q = (axis.B @ axis.B.T)[:, :, None] * p[:, 0] ** 2  # Q = σ_w² B Bᵀ
+            return plain_tables(axis.F, Q, p[:, 1] ** 2, axis.H[0])  # R = σ_v²
+
+        return filter_channels(np.where(finite, z, 0.0), kinds, row_params, x_start, P_start, tables)
