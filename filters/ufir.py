@@ -1,0 +1,311 @@
+"""UFIR: the unbiased finite impulse response filter (seed 001 Alg. 3; seed 000 Alg. 2 with ψ = 0; notes §1.1–1.2).
+
+Per coordinate channel the horizon holds the N measurements ``y_m … y_n`` (``m = n − N + 1``, oldest first)
+of the two-state model ``x_l = F x_{l−1} + B w_l``, ``y_l = H x_l + v_l``. Back-projecting every state to
+``x_n`` (backward Euler, notes §1.1, §1.7) stacks them as ``Y = C̄ x_n + noise`` with
+``C̄ = [H F^{−(N−1)}; …; H F^{−1}; H]``, and the UFIR estimate is the ordinary least-squares solution
+
+    x̂_n = (C̄ᵀ C̄)⁻¹ C̄ᵀ Y                       (notes §1.1; GNPG G_n = (C̄ᵀ C̄)⁻¹)
+
+which needs no noise statistics (σ_w, σ_v only set the default horizon by the N_opt rule). For the
+constant-velocity model this is the least-squares straight line through the last N points: its value and
+slope at frame n (:func:`ramp_gain`). :func:`ufir_iterative` is the paper's Kalman-like iterative algorithm,
+one output point at a time, used as the reference in the tests and the benchmark.
+
+Implementation (all vectorised over channels; the only Python loops are over a few start-up-length buckets and
+the K = 2 state columns): full windows without NaN use the cached gain ``(C̄ᵀC̄)⁻¹C̄ᵀ`` (QR, :func:`ls_gains`)
+as an FIR kernel (:mod:`filters.fir_core`); start-up frames use the forward batch form (notes §1.1) whose
+normal equations are cumulative sums over frames; full windows with NaN solve their own normal equations, whose
+entries are FFT convolutions of per-frame signals with per-lag kernels — no per-window gains.
+
+Conventions (shared with :mod:`filters.fir_core`): frame 0 is the first frame; start-up frames n < N − 1 use
+all samples so far (growing horizon, "m = 0"); missing samples (NaN) are dropped from the window's least
+squares; windows with fewer than 2 valid samples (e.g. frame 0) output the latest valid measurement as
+position and velocity 0.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Any, ClassVar
+
+import numpy as np
+import scipy.fft as sfft
+
+from filters.fir_core import FIRFilter, check_fir_params
+from filters.model import constant_velocity
+
+
+class UFIR(FIRFilter):
+    """UFIR filter. Parameters (scalars or per-track (B,) arrays): ``horizon`` N (frames, integer >= 2;
+    None → ``rule_horizon(sigma_v, sigma_w, tau, 2)``), ``sigma_w``, ``sigma_v`` (used only by that rule)."""
+
+    name: ClassVar[str] = "ufir"
+    DEFAULTS: ClassVar[dict[str, Any]] = {"horizon": None, "sigma_w": 1.0, "sigma_v": 1.0}
+    PER_TRACK: ClassVar[tuple[str, ...]] = ("horizon", "sigma_w", "sigma_v")
+    GAIN_PARAMS: ClassVar[tuple[str, ...]] = ("horizon",)
+
+    def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
+        return check_fir_params(params, self.model)
+
+    def window_gain(self, valid: np.ndarray, params: dict[str, float | int]) -> np.ndarray:
+        return self.window_gains(np.asarray(valid, bool)[None], {k: np.array([v]) for k, v in params.items()})[0]
+
+    def window_gains(self, valid: np.ndarray, params: dict[str, np.ndarray]) -> np.ndarray:
+        L = valid.shape[1]
+        axis = self.model.axis()
+        if valid.all():  # the gain depends on L only
+            return np.broadcast_to(_clean_gain(axis.tau, L), (valid.shape[0], 2, L))
+        return ls_gains(back_projected_rows(axis.F, axis.H, L) * valid[:, :, None])
+
+    def _startup(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, holes: np.ndarray, group: np.ndarray,
+                 gparams: dict[str, np.ndarray], L_c: np.ndarray) -> None:
+        """Start-up frames n < L_c − 1 (rows 0 … n, NaN or not) by the forward batch form referenced to x_0
+        (notes §1.1): ``x̂_n = F^n (C_fᵀ C_f)⁻¹ C_fᵀ Z`` with rows ``D_l F^l`` (``H F^l`` for undifferenced
+        samples), whose normal equations over frames 0 … n are cumulative sums over l — all frames and
+        channels at once, no per-point gains. ``Ψ_l`` as in :func:`ufir_iterative` (ψ = 0 for UFIR).
+        Channels are processed in a few buckets of similar start-up length."""
+        n_startup = np.minimum(L_c - 1, z.shape[1])
+        psi = gparams["psi"][group] if "psi" in gparams else np.zeros(z.shape[0])
+        bucket = np.ceil(np.log2(np.maximum(n_startup, 1))).astype(int)
+        for b in np.unique(bucket[n_startup > 0]):
+            idx = np.flatnonzero((bucket == b) & (n_startup > 0))
+            S = int(n_startup[idx].max())
+            X[idx, :S] = np.where(np.arange(S)[None, :, None] < n_startup[idx, None, None],
+                                  self._growing_horizon(z[idx, :S], valid[idx, :S], psi[idx]), X[idx, :S])
+
+    def _growing_horizon(self, z: np.ndarray, valid: np.ndarray, psi: np.ndarray) -> np.ndarray:
+        """Full-horizon estimates (C, S, 2) from frames 0 … n for every n < S (NaN where unobservable)."""
+        S = z.shape[1]
+        axis = self.model.axis()
+        F_pow = matrix_powers(axis.F, S)  # F^l
+        f = axis.H[0] @ F_pow  # (S, 2) rows H F^l
+        f_prev = np.vstack([axis.H @ np.linalg.inv(axis.F), f[:-1]])  # H F^{l−1}
+        plain, diff = row_kinds(valid)
+        Psi, Z = differenced(z, diff, psi)
+        r0 = valid * (f[None, :, 0] - Psi * f_prev[None, :, 0])  # row D_l F^l, first component
+        r1 = valid * (f[None, :, 1] - Psi * f_prev[None, :, 1])
+        gram = np.stack([r0 * r0, r0 * r1, r1 * r1, r0 * Z, r1 * Z])
+        np.cumsum(gram, axis=2, out=gram)  # C_fᵀ C_f and C_fᵀ Z over rows 0 … n
+        x_0 = solve_2x2(gram[0], gram[1], gram[2], gram[3], gram[4])  # (C, S, 2)
+        counts = np.cumsum(np.stack(row_statistics(plain, diff)), axis=2)  # rows 0 … n of each kind
+        x_0[~determined(*counts, psi[:, None])] = np.nan
+        return np.matmul(F_pow, x_0[..., None])[..., 0]
+
+    def _masked(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, cs: np.ndarray, ns: np.ndarray,
+                L_w: np.ndarray, group: np.ndarray, gparams: dict[str, np.ndarray]) -> None:
+        """Full windows holding a NaN (frames (cs, ns)), all at once: with rows ``r_k = h_k − Ψ_{n−k} h_{k+1}``
+        (``h_k = H F^{−k}``, lag k = n − l < N; missing samples give no row) the window's normal equations
+        ``C̄ᵀC̄ = Σ_k r_kᵀ r_k`` and ``C̄ᵀZ = Σ_k r_kᵀ z_{n−k}`` are causal convolutions of per-frame signals
+        (row present, Ψ_l, Ψ_l², z_l, Ψ_l z_l) with per-lag kernels — evaluated by FFT for every frame of the
+        affected channels, independent of the number of distinct NaN patterns — and solved in closed form."""
+        if cs.size == 0:
+            return
+        channels, row = np.unique(cs, return_inverse=True)
+        v = valid[channels]
+        psi = gparams["psi"][group[channels]] if "psi" in gparams else np.zeros(channels.size)
+        plain, diff = row_kinds(v)
+        Psi, Z = differenced(z[channels], diff, psi)
+        present = v.astype(float)
+        signals = (present, present * Psi, present * Psi**2, Z, Psi * Z)
+        N, kernel_of = np.unique(gparams["horizon"][group[channels]], return_inverse=True)  # rows per window
+        axis = self.model.axis()
+        h = back_projected_rows(axis.F, axis.H, int(N.max()) + 1)[::-1]  # h[k] = H F^{−k}
+        lag_ok = np.arange(N.max())[None, :] < N[:, None]  # (G', N_max) lags inside each group's horizon
+        hk, hk1 = h[:-1].T, h[1:].T  # (2, N_max) components of h_k and h_{k+1}
+        sym = lambda i, j: hk[i] * hk1[j] + hk[j] * hk1[i]  # noqa: E731
+        terms = {  # quantity: [(signal index, sign, kernel over lag k)]
+            "G00": [(0, 1, hk[0] ** 2), (1, -1, sym(0, 0)), (2, 1, hk1[0] ** 2)],
+            "G01": [(0, 1, hk[0] * hk[1]), (1, -1, sym(0, 1)), (2, 1, hk1[0] * hk1[1])],
+            "G11": [(0, 1, hk[1] ** 2), (1, -1, sym(1, 1)), (2, 1, hk1[1] ** 2)],
+            "E0": [(3, 1, hk[0]), (4, -1, hk1[0])],
+            "E1": [(3, 1, hk[1]), (4, -1, hk1[1])],
+        }
+        if not Psi.any():  # white-noise UFIR: only the terms without Ψ
+            terms = {name: parts[:1] for name, parts in terms.items()}
+        used = sorted({i for parts in terms.values() for i, _, _ in parts})
+        T = z.shape[1]
+        n_fft = sfft.next_fast_len(T + int(N.max()) - 1, real=True)
+        spectra = dict(zip(used, sfft.rfft(np.stack([signals[i] for i in used]), n_fft, axis=-1)))
+        sums = {}
+        for name, parts in terms.items():
+            acc = 0.0
+            for i, sign, kernel in parts:
+                acc = acc + sign * spectra[i] * sfft.rfft(kernel * lag_ok, n_fft, axis=-1)[kernel_of]
+            sums[name] = sfft.irfft(acc, n_fft, axis=-1)[:, :T]
+        x = solve_2x2(sums["G00"], sums["G01"], sums["G11"], sums["E0"], sums["E1"])  # (C', T, 2)
+        cum = np.zeros((4, channels.size, T + 1))
+        np.cumsum(np.stack(row_statistics(plain, diff)), axis=2, out=cum[:, :, 1:])  # exact integer sums
+        before = np.maximum(np.arange(T)[None, :] - N[kernel_of, None] + 1, 0)  # frames before the window
+        counts = cum[:, :, 1:] - np.take_along_axis(cum, np.broadcast_to(before, cum[:, :, 1:].shape), axis=2)
+        x[~determined(*counts, psi[:, None])] = np.nan  # decided exactly, not by rounding in the FFT sums
+        X[cs, ns] = x[row, ns]
+
+
+@lru_cache(maxsize=4096)
+def _clean_gain(tau: float, L: int) -> np.ndarray:
+    """UFIR gain (2, L) of a window of L valid samples (cached per L; read-only)."""
+    axis = constant_velocity(tau, ndim=1)
+    gain = ls_gains(back_projected_rows(axis.F, axis.H, L)[None])[0]
+    gain.setflags(write=False)
+    return gain
+
+
+def matrix_powers(A: np.ndarray, n: int) -> np.ndarray:
+    """``[A⁰, A¹, …, A^{n−1}]`` stacked (n, K, K), by doubling (about log₂ n stacked products)."""
+    powers = np.eye(A.shape[0])[None]
+    step = np.asarray(A, dtype=float)
+    while powers.shape[0] < n:
+        powers = np.concatenate([powers, powers @ step])
+        step = step @ step
+    return powers[:n]
+
+
+def back_projected_rows(F: np.ndarray, H: np.ndarray, L: int) -> np.ndarray:
+    """``C̄`` (L, K) with row i = ``H F^{−(L−1−i)}`` (oldest sample first, newest row = H): the rows that map
+    ``x_n`` to the noiseless measurements of a window ending at n (notes §1.1, backward Euler)."""
+    F_inv_powers = matrix_powers(np.linalg.inv(F), L)  # F^{−k}, k = 0 … L−1
+    return (np.asarray(H, dtype=float)[0] @ F_inv_powers)[::-1]
+
+
+def ls_gains(C: np.ndarray) -> np.ndarray:
+    """Least-squares gains ``(CᵀC)⁻¹Cᵀ`` (P, K, L) of P stacked full-column-rank designs C (P, L, K).
+
+    Computed as ``R⁻¹Qᵀ`` from a thin QR factorisation ``C = QR`` (Gram–Schmidt with one
+    re-orthogonalisation, vectorised over the P designs; no normal equations). Zero rows of C (missing
+    samples) give exactly zero columns of the gain."""
+    P, L, K = C.shape
+    Q = np.empty((P, L, K))
+    R = np.zeros((P, K, K))
+    for j in range(K):  # columns of C (K = 2 per coordinate), not taps
+        v = C[:, :, j].copy()
+        for _ in range(2):  # classical Gram–Schmidt twice ("twice is enough")
+            coef = np.einsum("plk,pl->pk", Q[:, :, :j], v)
+            v -= np.einsum("plk,pk->pl", Q[:, :, :j], coef)
+            R[:, :j, j] += coef
+        R[:, j, j] = np.linalg.norm(v, axis=1)
+        Q[:, :, j] = v / R[:, j, j, None]
+    gain = np.empty((P, K, L))  # back substitution R W = Qᵀ
+    for i in range(K - 1, -1, -1):
+        rest = np.einsum("pk,pkl->pl", R[:, i, i + 1:], gain[:, i + 1:, :])
+        gain[:, i, :] = (Q[:, :, i] - rest) / R[:, i, i, None]
+    return np.where(np.any(C != 0, axis=2)[:, None, :], gain, 0.0)
+
+
+def ramp_gain(N: int, tau: float) -> np.ndarray:
+    """Closed form of the UFIR gain (2, N) for the constant-velocity model (notes §1.1; oldest first):
+    position taps ``h_k = [2(2N−1) − 6k] / [N(N+1)]`` and velocity taps ``6(N−1−2k) / [τ N(N²−1)]`` at lag k
+    (k = 0 newest) — the value and slope at frame n of the least-squares line. Oracle for the tests."""
+    k = np.arange(N)[::-1]
+    position = (2.0 * (2 * N - 1) - 6.0 * k) / (N * (N + 1))
+    velocity = 6.0 * (N - 1 - 2.0 * k) / (tau * N * (N**2 - 1)) if N > 1 else np.zeros(N)
+    return np.stack([position, velocity])
+
+
+def ufir_iterative(y: np.ndarray, F: np.ndarray, H: np.ndarray, N: int, psi: float = 0.0) -> np.ndarray:
+    """Reference: seed 000 Algorithm 2 (UFIR for CMN; ψ = 0 is the standard UFIR, seed 001 Alg. 3) run
+    literally for every output point n of one track ``y`` (T,) or (T, p) with ``H`` (p, K) — a K-point
+    batch start and the G recursion over the horizon. O(N) K×K steps per point: for tests and benchmarks only.
+
+    Horizon of point n: rows l = m … n with ``m = max(0, n − N + 1)`` (start-up: all samples so far).
+    Row l uses the differenced measurement ``z_l = y_l − Ψ_l y_{l−1}`` with ``D_l = H − Ψ_l H F⁻¹``, where
+    ``Ψ_l = ψ`` if ``y_{l−1}`` is available (l ≥ 1 and finite) and ``Ψ_l = 0`` otherwise (the track's first
+    frame and the sample after a gap enter undifferenced). A missing y_l gives no row (prediction only).
+    A frame with any NaN counts as missing. The batch start uses the first rows of the horizon that determine
+    the state (p = 1 without gaps: K rows, s = m + K − 1); horizons with too few usable rows output
+    ``H⁺ y_last`` (position = latest valid y, velocity 0). Returns (T, K)."""
+    F = np.asarray(F, dtype=float)
+    H = np.atleast_2d(np.asarray(H, dtype=float))
+    T = len(y)
+    y = np.asarray(y, dtype=float).reshape(T, H.shape[0])
+    K = F.shape[0]
+    F_inv = np.linalg.inv(F)
+    valid = np.all(np.isfinite(y), axis=1)
+    Psi = np.where(np.concatenate([[False], valid[:-1]]), psi, 0.0)  # Ψ_l
+    out = np.empty((T, K))
+    for n in range(T):
+        m = max(0, n - N + 1)
+        rows = [l for l in range(m, n + 1) if valid[l]]
+        start = _batch_start(rows, H, F_inv, Psi)
+        if start is None:
+            last = np.flatnonzero(valid[: n + 1])
+            out[n] = np.linalg.pinv(H) @ (y[last[-1]] if last.size else np.full(H.shape[0], np.nan))
+            continue
+        s, used, C_ms = start
+        Z_ms = np.concatenate([y[l] - Psi[l] * y[l - 1] if Psi[l] else y[l] for l in used])
+        G = np.linalg.inv(C_ms.T @ C_ms)  # Alg. 2 line 4: G_s = (C_{m,s}ᵀ C_{m,s})⁻¹
+        x = G @ C_ms.T @ Z_ms  # line 5: x̄_s = G_s C_{m,s}ᵀ Y_{m,s} (the z_l of the rows of C_{m,s}, notes §1.3)
+        for l in range(s + 1, n + 1):  # line 6
+            x = F @ x  # line 11: x̄_l⁻ = F_l x̄_{l−1}
+            if not valid[l]:  # missing y_l: no update, G propagates
+                G = F @ G @ F.T
+                continue
+            D = H - Psi[l] * H @ F_inv  # line 7: D_l = H_l − Ψ_l H_{l−1} F_l⁻¹
+            z = y[l] - Psi[l] * y[l - 1] if Psi[l] else y[l]  # line 8: z_l = y_l − Ψ_l y_{l−1}
+            G = np.linalg.inv(D.T @ D + np.linalg.inv(F @ G @ F.T))  # line 9
+            K_l = G @ D.T  # line 10
+            x = x + K_l @ (z - D @ x)  # line 12
+        out[n] = x  # line 14
+    return out
+
+
+def _batch_start(rows: list[int], H: np.ndarray, F_inv: np.ndarray,
+                 Psi: np.ndarray) -> tuple[int, list[int], np.ndarray] | None:
+    """The batch-start point s, the frames [m, s] it uses and C_{m,s}: the shortest prefix of ``rows`` with full
+    column rank — smallest singular value > 1e-10 × largest after scaling the columns by those of the
+    undifferenced rows ``H F^{−(s−l)}`` (so cancellation in ``D_l`` cannot hide a rank loss) — or None if the
+    whole horizon is rank deficient."""
+    K = F_inv.shape[0]
+    for count in range(-(-K // H.shape[0]), len(rows) + 1):  # at least K scalar rows
+        used = rows[:count]
+        back = [np.linalg.matrix_power(F_inv, used[-1] - l) for l in used]  # F^{−(s−l)}
+        C_ms = np.vstack([(H - Psi[l] * H @ F_inv) @ B for l, B in zip(used, back)])  # rows D_l F^{−(s−l)}
+        scale = np.linalg.norm(np.vstack([H @ B for B in back]), axis=0)
+        singular_values = np.linalg.svd(C_ms / scale, compute_uv=False)
+        if singular_values[-1] > 1e-10 * singular_values[0]:
+            return used[-1], used, C_ms
+    return None
+
+
+def solve_2x2(a: np.ndarray, c: np.ndarray, d: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> np.ndarray:
+    """Solve stacked symmetric 2×2 systems ``[[a, c], [c, d]] x = [b0, b1]`` in closed form → (..., 2)
+    (NaN where the determinant is not positive)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        det = a * d - c * c
+        det = np.where(det > 0, det, np.nan)
+        return np.stack([(d * b0 - c * b1) / det, (a * b1 - c * b0) / det], axis=-1)
+
+
+def row_kinds(valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Row kind of each frame l of ``valid`` (..., T): ``plain`` — y_l enters undifferenced (l = 0 or y_{l−1}
+    missing), ``diff`` — as ``z_l = y_l − ψ y_{l−1}``. Missing samples are neither."""
+    diff = np.zeros_like(valid)
+    diff[..., 1:] = valid[..., 1:] & valid[..., :-1]
+    return valid & ~diff, diff
+
+
+def differenced(z: np.ndarray, diff: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``Ψ_l`` (C, T) (ψ on differenced rows, else 0) and the row data ``z_l = y_l − Ψ_l y_{l−1}`` (0 where y_l
+    is missing) of channels ``z`` (C, T) with per-channel ψ (C,)."""
+    y0 = np.where(np.isfinite(z), z, 0.0)
+    Psi = psi[:, None] * diff
+    Z = y0.copy()
+    Z[:, 1:] -= Psi[:, 1:] * y0[:, :-1]
+    return Psi, Z
+
+
+def row_statistics(plain: np.ndarray, diff: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per-frame counts and frame indices of each row kind; summed over a window they feed :func:`determined`."""
+    frame = np.arange(plain.shape[-1])
+    return plain.astype(float), diff.astype(float), plain * frame, diff * frame
+
+
+def determined(n_plain: np.ndarray, n_diff: np.ndarray, sum_plain: np.ndarray, sum_diff: np.ndarray,
+               psi: np.ndarray) -> np.ndarray:
+    """True where a window's rows determine the two-state CV state, decided exactly from row counts and frame
+    sums. A differenced row at frame l is (1 − ψ)·[1, −τ(n − l − ψ/(1−ψ))] and an undifferenced one
+    [1, −τ(n − l)], so two rows are parallel only if one of each has ``l_plain − l_diff = ψ/(1 − ψ)`` (possible for
+    ψ = j/(j+1), j >= 2). Hence: at least 2 rows, and not exactly that pair."""
+    ratio = psi / (1.0 - psi)
+    pair = (n_plain == 1) & (n_diff == 1) & (np.abs(sum_plain - sum_diff - ratio) <= 1e-9 * (1.0 + ratio))
+    return (n_plain + n_diff >= 2) & ~pair
