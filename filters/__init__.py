@@ -9,12 +9,21 @@
 
 from __future__ import annotations
 
+import os
 from importlib import import_module
 from typing import Any
+
+from threadpoolctl import threadpool_limits
 
 from filters.base import Filter
 from filters.horizon import n_opt, rule_horizon
 from filters.model import StateSpaceModel, constant_velocity
+
+# The matrices here are tiny (2×2 per channel, FIR windows of at most a few hundred taps): a multi-threaded
+# BLAS only adds hand-off overhead, and on a busy 2-core machine OpenBLAS's spinning threads made one N=160
+# gain 100× slower. Importing ``filters`` therefore limits the BLAS libraries loaded so far to
+# $BBOXTUNE_BLAS_THREADS threads (default 1); set it to another number to change that.
+threadpool_limits(limits=int(os.environ.get("BBOXTUNE_BLAS_THREADS", "1")), user_api="blas")
 
 NAMES: tuple[str, ...] = ("kf", "kf_cmn", "ufir", "ufir_cmn", "ofir", "oufir", "fir", "ukf")
 
