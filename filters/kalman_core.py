@@ -19,6 +19,10 @@ Frame kinds (per channel and frame):
 * ``PREDICT``— no usable measurement: x = F x, P = F P Fᵀ + Q (missing data).
 * ``UPDATE_Y``— predict, then a standard update on y_n (D = H).
 * ``UPDATE_Z``— KF-CMN: de-correlated predict + update on the differenced z_n (seed 000 Algorithm 1).
+
+A continued run (:meth:`filters.base.Filter.run_from`) starts a channel from its carried posterior state and
+covariance (a prior for frame 0) and hands back the covariance at the last frame: the last P of its row's
+recursion, or the steady P where the recursion stopped early, so the carry adds no per-frame work.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from filters.base import split_covariance, split_state
+from filters.base import AxisCarry, split_covariance, split_state
 
 WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)
 N_KINDS = 5
@@ -65,36 +69,45 @@ def plain_tables(F: np.ndarray, Q: np.ndarray, R_y: np.ndarray, H: np.ndarray) -
     return StepTables(A=A, Q=Qk, Lam=Lam, D=D, R=R)
 
 
-def frame_kinds(finite: np.ndarray, prior: bool, differenced: bool = False) -> np.ndarray:
+def frame_kinds(finite: np.ndarray, prior: bool | np.ndarray, differenced: bool = False,
+                measured: np.ndarray | None = None, finite_before: np.ndarray | None = None) -> np.ndarray:
     """Kind of every frame (C, T) from the finite-measurement mask (C, T).
 
-    The first finite measurement is a standard update (``prior``) or the initialisation (no prior); later
-    finite frames update on y (``differenced=False``) or, when y_{n-1} is finite too, on the differenced
-    z_n (``differenced=True``; without y_{n-1} there is no z_n and the frame is predict-only)."""
-    T = finite.shape[1]
+    The first finite measurement is a standard update (``prior``, bool or per channel (C,)) or the
+    initialisation (no prior); later finite frames update on y (``differenced=False``) or, when y_{n-1} is
+    finite too, on the differenced z_n (``differenced=True``; without y_{n-1} there is no z_n and the frame is
+    predict-only). A continued run (``Filter.run_from``) passes ``measured`` (C,): channels whose first finite
+    measurement lies before frame 0, and ``finite_before`` (C,): whether the carried y_{-1} is finite."""
+    C, T = finite.shape
     frames = np.arange(T)
-    first_index = np.where(finite.any(axis=1), np.argmax(finite, axis=1), T)[:, None]
-    first = frames == first_index
+    first_index = np.where(finite.any(axis=1), np.argmax(finite, axis=1), T)
+    if measured is not None:
+        first_index = np.where(measured, -1, first_index)
+    first = frames == first_index[:, None]
     kinds = np.full(finite.shape, PREDICT, dtype=np.int8)
     if differenced:
         previous = np.zeros_like(finite)
+        previous[:, 0] = False if finite_before is None else finite_before
         previous[:, 1:] = finite[:, :-1]
         kinds[finite & previous] = UPDATE_Z
     else:
         kinds[finite & ~first] = UPDATE_Y
-    kinds[first] = UPDATE_Y if prior else INIT
-    if not prior:
-        kinds[frames < first_index] = WAIT
+    prior = np.broadcast_to(prior, (C,))[:, None]
+    kinds[first & prior] = UPDATE_Y
+    kinds[first & ~prior] = INIT
+    kinds[(frames < first_index[:, None]) & ~prior] = WAIT
     return kinds
 
 
-def channel_start(x0: np.ndarray | None, P0: np.ndarray | None, M: int, n_channels: int,
-                  var_position: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """Start state (C, 2) and covariance (C, 2, 2) of every channel (channel c = coordinate c % M).
+def channel_start(x0: np.ndarray | None, P0: np.ndarray | None, M: int, n_channels: int, var_position: np.ndarray,
+                  tau: float, carry: AxisCarry | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Start state (C, 2) and covariance (C, 2, 2) of every channel (channel c = coordinate c % M), and
+    which channels start from a prior (C,) bool: ``x0`` or a carried state.
 
     ``x0``/``P0`` are full-model (K,)/(K, K) arrays or None. The covariance is that of the prior x0 when x0
     is given, else that of the state initialised from the first finite measurement. ``P0=None`` →
-    diag(var_position, (VELOCITY_PRIOR_SCALE² · var_position / τ²)) per channel."""
+    diag(var_position, (VELOCITY_PRIOR_SCALE² · var_position / τ²)) per channel. Channels whose ``carry``
+    state is finite start from it instead (the others have not started: they start as above)."""
     coord = np.arange(n_channels) % M
     x_start = np.zeros((n_channels, 2)) if x0 is None else split_state(x0, M)[coord]
     if P0 is None:
@@ -103,12 +116,19 @@ def channel_start(x0: np.ndarray | None, P0: np.ndarray | None, M: int, n_channe
         P_start[:, 1, 1] = VELOCITY_PRIOR_SCALE**2 * var_position / tau**2
     else:
         P_start = split_covariance(P0, M)[coord]
-    return x_start, P_start
+    if carry is None:
+        return x_start, P_start, np.full(n_channels, x0 is not None)
+    carried = ~np.isnan(carry.x[:, 0])
+    x_start[carried] = carry.x[carried]
+    P_start[carried] = carry.P[carried]
+    return x_start, P_start, carried | (x0 is not None)
 
 
-def gain_recursion(kinds: np.ndarray, tables: StepTables, P_start: np.ndarray) -> tuple[np.ndarray, int]:
-    """Affine coefficients (T, 6, G) = [M00, M01, M10, M11, g0, g1] of every row and frame, and the frame
-    from which every row's coefficients stay constant (T if they never settle).
+def gain_recursion(kinds: np.ndarray, tables: StepTables,
+                   P_start: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
+    """Affine coefficients (T, 6, G) = [M00, M01, M10, M11, g0, g1] of every row and frame, the frame
+    from which every row's coefficients stay constant (T if they never settle), and the posterior covariance
+    (2, 2, G) at the last frame (at an early stop: the steady one, which every later frame repeats).
 
     ``kinds`` (G, T), ``P_start`` (2, 2, G): the prior before frame 0 (PREDICT/UPDATE kinds) and the
     covariance at WAIT/INIT frames. Matrices are stored row-last, (2, 2, G), so that one einsum handles all
@@ -147,9 +167,9 @@ def gain_recursion(kinds: np.ndarray, tables: StepTables, P_start: np.ndarray) -
         # P_n = P_{n-1} and no kind changes later: every later frame repeats frame n
         if n % 8 == 7 and n >= settled_from and np.array_equal(P_new, P):
             coef[n + 1:] = coef[n]
-            return coef, n
+            return coef, n, P_new
         P = P_new
-    return coef, T
+    return coef, T, P
 
 
 def apply_affine(coef: np.ndarray, steady_from: int, row_of_channel: np.ndarray, m: np.ndarray,
@@ -225,22 +245,26 @@ def _group_rows(key: np.ndarray, kinds: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def filter_channels(m: np.ndarray, kinds: np.ndarray, row_params: np.ndarray, x_start: np.ndarray,
-                    P_start: np.ndarray, build_tables: Callable[[np.ndarray], StepTables]) -> np.ndarray:
+                    P_start: np.ndarray,
+                    build_tables: Callable[[np.ndarray], StepTables]) -> tuple[np.ndarray, np.ndarray]:
     """Filter channels (C, T) that share one model up to their parameters.
 
     ``row_params`` (C, n): the per-channel parameters the tables depend on; ``build_tables(params (G, n))``
     returns the :class:`StepTables` of G unique rows. Channels with equal parameters, start covariance and
-    frame kinds share one gain sequence. Returns posterior states (C, T, 2), NaN at WAIT frames."""
+    frame kinds share one gain sequence. Returns posterior states (C, T, 2), NaN at WAIT frames, and the
+    posterior covariance at the last frame (C, 2, 2), NaN for channels still waiting there."""
     C = m.shape[0]
     key = np.concatenate([row_params.reshape(C, -1), P_start.reshape(C, 4)], axis=1)
     first_of_row, row_of_channel = _group_rows(np.ascontiguousarray(key).view(np.uint64), kinds)
-    coef, steady_from = gain_recursion(
+    coef, steady_from, P_rows = gain_recursion(
         kinds[first_of_row], build_tables(row_params[first_of_row]), P_start[first_of_row].transpose(1, 2, 0)
     )
     states = apply_affine(coef, steady_from, row_of_channel, m, x_start)
+    P_end = P_rows[:, :, row_of_channel].transpose(2, 0, 1)
     if np.any(kinds[:, 0] == WAIT):  # WAIT frames lead a channel's sequence
         states[kinds == WAIT] = np.nan
-    return states
+        P_end[kinds[:, -1] == WAIT] = np.nan
+    return states, P_end
 
 
 def check_prior(x0: object, P0: object, K: int, M: int) -> tuple[np.ndarray | None, np.ndarray | None]:

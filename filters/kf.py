@@ -15,6 +15,8 @@ Conventions
 * ``x0`` given, ``P0=None``: the prior covariance is that same diag(σ_v², (10³ σ_v / τ)²).
 * NaN in y = missing: predict only (filterpy ``update(None)``).
 * Output: posterior ``[positions, velocities]`` at every frame, float64.
+* ``run_from(y, carry)`` continues a run from the posterior state and covariance a previous call ended in
+  (:class:`filters.base.Carry`): the next frame is predict + update from there, with this call's σ_w, σ_v.
 
 Speed: the gains are computed once per unique (σ_w, σ_v, missing pattern) and stop being recomputed once
 they reach steady state (:mod:`filters.kalman_core`); all channels are then filtered together.
@@ -34,7 +36,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.base import Filter
+from filters.base import AxisCarry, Filter
 from filters.kalman_core import StepTables, channel_start, check_prior, filter_channels, frame_kinds, plain_tables
 from filters.validation import check_positive
 
@@ -56,16 +58,19 @@ class KF(Filter):
             "P0": P0,
         }
 
-    def _run_axes(self, z: np.ndarray, params: dict[str, Any]) -> np.ndarray:
+    def _run_axes_from(self, z: np.ndarray, params: dict[str, Any], start: AxisCarry | None,
+                       u: np.ndarray | None) -> tuple[np.ndarray, AxisCarry]:
         axis = self.model.axis()
         var_v = params["sigma_v"] ** 2
-        x_start, P_start = channel_start(params["x0"], params["P0"], self.model.M, z.shape[0], var_v, axis.tau)
+        x_start, P_start, prior = channel_start(params["x0"], params["P0"], self.model.M, z.shape[0], var_v,
+                                                axis.tau, start)
         finite = ~np.isnan(z)
-        kinds = frame_kinds(finite, prior=params["x0"] is not None)
+        kinds = frame_kinds(finite, prior, measured=None if start is None else start.measured)
         row_params = np.stack([params["sigma_w"], params["sigma_v"]], axis=1)
 
         def tables(p: np.ndarray) -> StepTables:
             Q = (axis.B @ axis.B.T)[:, :, None] * p[:, 0] ** 2  # Q = σ_w² B Bᵀ
             return plain_tables(axis.F, Q, p[:, 1] ** 2, axis.H[0])  # R = σ_v²
 
-        return filter_channels(np.where(finite, z, 0.0), kinds, row_params, x_start, P_start, tables)
+        states, P_end = filter_channels(np.where(finite, z, 0.0), kinds, row_params, x_start, P_start, tables)
+        return states, AxisCarry(x=states[:, -1], P=P_end)

@@ -28,6 +28,9 @@ Conventions
 * ψ = 0 gives Γ = 0, Λ = 0, A = F, 𝒬 = Q, D = H, R̄ = σ_v², z = y: bit-identical to ``kf`` on data
   without gaps (with gaps ``kf`` also updates on the first y after a gap, which has no z here).
 * Output: posterior ``[positions, velocities]`` at every frame, float64.
+* ``run_from(y, carry)`` continues from the posterior state and covariance a previous call ended in
+  (:class:`filters.base.Carry`) with this call's σ_w, σ_v, ψ; the carried last measurement y_{-1} gives the
+  first frame's ``z_0 = y_0 − ψ y_{-1}`` (ψ of this call), so the split run equals the whole one.
 
 >>> import numpy as np, filters
 >>> f = filters.make("kf_cmn", filters.constant_velocity(0.05), sigma_w=50.0, sigma_v=4.0, psi=0.6)
@@ -41,7 +44,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.base import Filter
+from filters.base import AxisCarry, Filter
 from filters.model import StateSpaceModel
 from filters.kalman_core import (UPDATE_Z, StepTables, channel_start, check_prior, filter_channels, frame_kinds,
                                  plain_tables)
@@ -67,19 +70,24 @@ class KFCMN(Filter):
             "P0": P0,
         }
 
-    def _run_axes(self, z: np.ndarray, params: dict[str, Any]) -> np.ndarray:
+    def _run_axes_from(self, z: np.ndarray, params: dict[str, Any], start: AxisCarry | None,
+                       u: np.ndarray | None) -> tuple[np.ndarray, AxisCarry]:
         axis = self.model.axis()
         psi = params["psi"]
         var_y = params["sigma_v"] ** 2 / (1.0 - psi**2)  # stationary variance of v_n
-        x_start, P_start = channel_start(params["x0"], params["P0"], self.model.M, z.shape[0], var_y, axis.tau)
-        finite = ~np.isnan(z)
-        kinds = frame_kinds(finite, prior=params["x0"] is not None, differenced=True)
-        previous = np.zeros_like(z)
+        x_start, P_start, prior = channel_start(params["x0"], params["P0"], self.model.M, z.shape[0], var_y,
+                                                axis.tau, start)
+        previous = np.empty_like(z)
+        previous[:, 0] = np.nan if start is None else start.y_last  # y_{-1}: the carried last measurement
         previous[:, 1:] = z[:, :-1]
+        finite = ~np.isnan(z)
+        kinds = frame_kinds(finite, prior, differenced=True, measured=None if start is None else start.measured,
+                            finite_before=~np.isnan(previous[:, 0]))
         differenced = z - psi[:, None] * previous  # z_n = y_n − ψ y_{n-1} (eq. 4)
         m = np.where(kinds == UPDATE_Z, differenced, np.where(finite, z, 0.0))
         row_params = np.stack([params["sigma_w"], params["sigma_v"], psi], axis=1)
-        return filter_channels(m, kinds, row_params, x_start, P_start, lambda p: cmn_tables(axis, p))
+        states, P_end = filter_channels(m, kinds, row_params, x_start, P_start, lambda p: cmn_tables(axis, p))
+        return states, AxisCarry(x=states[:, -1], P=P_end)
 
 
 def cmn_tables(axis: StateSpaceModel, p: np.ndarray) -> StepTables:

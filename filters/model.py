@@ -12,6 +12,7 @@ run every coordinate of every track as one batch of two-state problems.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -38,9 +39,13 @@ class StateSpaceModel:
         """Measurement size (ndim)."""
         return self.H.shape[0]
 
+    @cached_property
+    def _axis(self) -> StateSpaceModel:
+        return constant_velocity(self.tau, ndim=1)
+
     def axis(self) -> StateSpaceModel:
         """The one-coordinate two-state model every coordinate of this model follows."""
-        return constant_velocity(self.tau, ndim=1)
+        return self if self.ndim == 1 else self._axis
 
 
 def constant_velocity(tau: float, ndim: int = 1) -> StateSpaceModel:

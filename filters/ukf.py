@@ -44,7 +44,9 @@ eq. 18 (camera velocity as a known input). Camera states are added to the first 
 Conventions: predict-first with prior ``x0``/``P0`` (as :class:`filters.kf.KF`); ``x0=None`` initialises at the
 first finite y as [y, 0] (c = 0) with covariance P0 or diag(σ_v², (10³σ_v/τ)²) (c variance (10³σ_v/τ)²,
 independent of r); frames before that are NaN. NaN in y or u = that measurement is missing (update with the
-rest, predict only if nothing is left).
+rest, predict only if nothing is left). ``run_from(y, carry, u)`` continues from the posterior a previous call
+ended in (:class:`filters.base.Carry`; with camera_motion its ``c``, ``P_c`` hold the camera state c and its
+covariance with [q, r, c]) with this call's parameters.
 
 >>> import numpy as np, filters
 >>> f = filters.make("ukf", filters.constant_velocity(0.05, ndim=2), camera_motion=True, sigma_c=5.0)
@@ -58,9 +60,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.base import Filter, merge_axes
+from filters.base import AxisCarry, Filter
 from filters.kalman_core import INIT, VELOCITY_PRIOR_SCALE, WAIT, channel_start, check_prior, frame_kinds
-from filters.validation import as_param, broadcast_params, check_measurements, check_positive
+from filters.validation import as_param, check_positive
 
 
 class UKF(Filter):
@@ -95,69 +97,55 @@ class UKF(Filter):
         """How many leading coordinates carry camera states (0 without ``camera_motion``)."""
         return min(self.model.M, 2) if self.params["camera_motion"] else 0
 
-    def run(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        """Filter ``y`` (T, M) or (B, T, M); ``u`` (only with ``camera_motion=True``): measured apparent
-        background velocity (T, n_c) or (B, T, n_c), n_c = min(M, 2), units/s, NaN where unavailable."""
-        if u is None:
-            return super().run(y)
-        if not self.params["camera_motion"]:
-            raise ValueError("u (camera velocity) was given but camera_motion=False; allowed: u=None")
-        Y, batched = check_measurements(y, self.model.M)
-        n_tracks, T, M = Y.shape
-        U = np.asarray(u, dtype=float)
-        want = (T, self.camera_coordinates) if not batched else (n_tracks, T, self.camera_coordinates)
-        if U.shape != want:
-            raise ValueError(f"u has shape {U.shape}; allowed: {want} (y has shape {np.shape(y)})")
-        if np.any(np.isinf(U)):
-            raise ValueError("u contains ±inf; allowed: finite values, or NaN where unavailable")
-        U = U.reshape(n_tracks, T, -1)
-        per_track = {k: v for k, v in self.params.items() if k in self.PER_TRACK}
-        per_channel = {k: np.repeat(v, M) for k, v in broadcast_params(per_track, n_tracks, batched).items()}
-        fixed = {k: v for k, v in self.params.items() if k not in per_channel}
-        u_channels = np.full((n_tracks, M, T), np.nan)
-        u_channels[:, : U.shape[2]] = U.transpose(0, 2, 1)
-        axes = self._run_channels(Y.transpose(0, 2, 1).reshape(n_tracks * M, T), u_channels.reshape(-1, T),
-                                  {**fixed, **per_channel})
-        states = merge_axes(axes, n_tracks, M)
-        return states if batched else states[0]
-
-    def _run_axes(self, z: np.ndarray, params: dict[str, Any]) -> np.ndarray:
-        return self._run_channels(z, None, params)
-
-    def _run_channels(self, z: np.ndarray, u: np.ndarray | None, params: dict[str, Any]) -> np.ndarray:
+    def _run_axes_from(self, z: np.ndarray, params: dict[str, Any], start: AxisCarry | None,
+                       u: np.ndarray | None) -> tuple[np.ndarray, AxisCarry]:
         """Channels (C, T) → (C, T, 2); camera channels (coordinate < n_c) run the 3-state model."""
         axis, M = self.model.axis(), self.model.M
         C, T = z.shape
-        x_start, P_start = channel_start(params["x0"], params["P0"], M, C, params["sigma_v"] ** 2, axis.tau)
-        kinds = frame_kinds(~np.isnan(z), prior=params["x0"] is not None)
+        var_v = params["sigma_v"] ** 2
+        x_start, P_start, prior = channel_start(params["x0"], params["P0"], M, C, var_v, axis.tau, start)
+        kinds = frame_kinds(~np.isnan(z), prior, measured=None if start is None else start.measured)
         camera = np.arange(C) % M < self.camera_coordinates
         F, b = axis.F, axis.B[:, 0]
-        out = np.empty((C, T, 2))
+        out, x_end, P_end = np.empty((C, T, 2)), np.empty((C, 2)), np.empty((C, 2, 2))
+        c_end = P_c_end = None
         for group, n in ((~camera, 2), (camera, 3)):
             if not group.any():
                 continue
             sw, sc = params["sigma_w"][group], params["sigma_c"][group]
             Fn, Q = F, np.outer(b, b)[:, :, None] * sw**2
-            x0, P0 = x_start[group].T, P_start[group].transpose(1, 2, 0)
+            x0, P0 = np.zeros((group.sum(), n)), np.zeros((group.sum(), n, n))
+            x0[:, :2], P0[:, :2, :2] = x_start[group], P_start[group]
             meas = z[None, group].transpose(0, 2, 1)
-            R = params["sigma_v"][None, group] ** 2
+            R = var_v[None, group]
             if n == 3:  # [q, r, c]: eq. 17 in image coordinates (module docstring)
                 Fn = np.eye(3)
                 Fn[:2, :2] = F
                 b_c = np.array([b[0], b[1], b[1]])
                 Q = np.pad(Q, ((0, 1), (0, 1), (0, 0))) + np.outer(b_c, b_c)[:, :, None] * sc**2
-                x0 = np.pad(x0, ((0, 1), (0, 0)))
-                P0 = np.pad(P0, ((0, 1), (0, 1), (0, 0)))
-                P0[2, 2] = VELOCITY_PRIOR_SCALE**2 * params["sigma_v"][group] ** 2 / axis.tau**2
+                P0[:, 2, 2] = VELOCITY_PRIOR_SCALE**2 * var_v[group] / axis.tau**2
+                carried = np.zeros(len(x0), dtype=bool) if start is None else ~np.isnan(start.x[group, 0])
+                if carried.any():  # continue the camera state c and its covariance with [q, r, c]
+                    x0[carried, 2] = start.c[carried]
+                    P0[carried, 2, :] = start.P_c[carried]
+                    P0[carried, :, 2] = start.P_c[carried]
                 if u is not None:
                     meas = np.stack([z[group], u[group]]).transpose(0, 2, 1)
                     R = np.stack([R[0], params["sigma_u"][group] ** 2])
             H = np.eye(n)[[0, 2][: meas.shape[0]]]
             weights = scaled_weights(n, params["alpha"][group], params["beta"][group], params["kappa"][group])
-            states = unscented_filter(meas, kinds[group], lambda s, Fn=Fn: np.einsum("ij,sjc->sic", Fn, s),
-                                      lambda s, H=H: np.einsum("ij,sjc->sic", H, s), Q, R, x0, P0, weights)
+            states, x_last, P_last = unscented_filter(
+                meas, kinds[group], lambda s, Fn=Fn: np.einsum("ij,sjc->sic", Fn, s),
+                lambda s, H=H: np.einsum("ij,sjc->sic", H, s), Q, R, x0.T, P0.transpose(1, 2, 0), weights)
             out[group] = states[:, :2].transpose(2, 0, 1)
-        return out
+            x_end[group], P_end[group] = x_last[:2].T, P_last[:2, :2].transpose(2, 0, 1)
+            if n == 3:
+                c_end, P_c_end = x_last[2], P_last[2].T
+        waiting = kinds[:, -1] == WAIT  # not started: NaN state (the next call starts it)
+        x_end[waiting], P_end[waiting] = np.nan, np.nan
+        if c_end is not None:
+            c_end[waiting[camera]], P_c_end[waiting[camera]] = np.nan, np.nan
+        return out, AxisCarry(x=x_end, P=P_end, c=c_end, P_c=P_c_end)
 
 
 def scaled_weights(n: int, alpha: np.ndarray, beta: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -212,7 +200,8 @@ def unscented_filter(y: np.ndarray, kinds: np.ndarray, fx: Any, hx: Any, Q: np.n
     decides the frame ``kinds`` (C, T) of :func:`filters.kalman_core.frame_kinds`), ``fx``/``hx`` map sigma
     points (S, n, C) to (S, n, C)/(S, p, C), ``Q`` (n, n, C), ``R`` (p, C) diagonal measurement variances,
     start state/covariance (n, C)/(n, n, C), ``weights`` from :func:`scaled_weights`.
-    Returns posterior states (T, n, C)."""
+    Returns posterior states (T, n, C) (NaN at WAIT frames) and the posterior state (n, C) and covariance
+    (n, n, C) at the last frame (the start values for a channel still waiting there)."""
     p, T, C = y.shape
     spread, Wm, Wc = weights
     x, P = x_start.copy(), P_start.copy()
@@ -246,4 +235,4 @@ def unscented_filter(y: np.ndarray, kinds: np.ndarray, fx: Any, hx: Any, Q: np.n
             P = P - np.einsum("ijc,jkc,lkc->ilc", K, S, K)  # eq. 11
             P = 0.5 * (P + P.transpose(1, 0, 2))
         out[n] = x
-    return np.where((kinds.T == WAIT)[:, None], np.nan, out)
+    return np.where((kinds.T == WAIT)[:, None], np.nan, out), x, P
