@@ -1,0 +1,135 @@
+"""Action ↔ filter-parameter mapping shared by the environments and the baselines.
+
+An action is a float vector in [-1, 1]^d, one entry per tuned parameter (``tune``, in that order):
+
+| parameter | mapping from a ∈ [-1, 1]                               | range                          |
+|-----------|--------------------------------------------------------|--------------------------------|
+| psi       | ψ = ψ_max (a + 1) / 2                                  | [0, ψ_max], ψ_max = 0.99       |
+| horizon   | N = round(K (N_max / K)^((a + 1) / 2))  (log scale)    | integers [K, N_max]            |
+| sigma_w   | σ_w = σ_w,nominal · 10^(D a)             (log scale)   | nominal · [10^-D, 10^D], D=1.5 |
+| sigma_v   | σ_v = σ_v,nominal · 10^(D a)             (log scale)   | nominal · [10^-D, 10^D]        |
+
+The horizon is mapped on an absolute log scale rather than as a multiplier on the rule's N_opt: the rule's
+own N_opt is computed from nominal σ that can be off by a decade, so a multiplier would tie the reachable
+range to a possibly wrong centre; log N_opt is in the observation instead, so a policy can still learn a
+residual on it. Entries with |a| ≤ 1 + 1e-6 are accepted (the excess is clipped: float32 round-off);
+anything further out, NaN or ±inf raises ``ValueError``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+TUNABLE: tuple[str, ...] = ("psi", "horizon", "sigma_w", "sigma_v")
+
+# Which parameters each back end accepts from the tuner (the others stay at their nominal values).
+ACCEPTS: dict[str, tuple[str, ...]] = {
+    "kf": ("sigma_w", "sigma_v"),
+    "kf_cmn": ("psi", "sigma_w", "sigma_v"),
+    "ufir": ("horizon",),
+    "ufir_cmn": ("psi", "horizon"),
+    "ofir": ("horizon", "sigma_w", "sigma_v"),
+    "oufir": ("horizon", "sigma_w", "sigma_v"),
+    "fir": ("horizon", "sigma_w", "sigma_v"),
+    "ukf": ("sigma_w", "sigma_v"),
+}
+
+# Default ``tune``: OFIR/OUFIR/FIR gains depend on σ_w/σ_v only through their ratio, so σ_v stays nominal.
+DEFAULT_TUNE: dict[str, tuple[str, ...]] = {
+    "kf": ("sigma_w", "sigma_v"),
+    "kf_cmn": ("psi", "sigma_w", "sigma_v"),
+    "ufir": ("horizon",),
+    "ufir_cmn": ("psi", "horizon"),
+    "ofir": ("horizon", "sigma_w"),
+    "oufir": ("horizon", "sigma_w"),
+    "fir": ("horizon", "sigma_w"),
+    "ukf": ("sigma_w", "sigma_v"),
+}
+
+_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True)
+class Nominal:
+    """The nominal parameter values of one episode (what the fixed rule uses)."""
+
+    sigma_w: float  # coordinate units / s², acceleration noise std
+    sigma_v: float  # coordinate units, white measurement noise std
+    psi: float  # CMN coloredness assumed by the rule
+    horizon: int  # frames, the rule's N = round(N_opt(σ_v, σ_w, τ)) within [K, N_max]
+
+
+@dataclass(frozen=True)
+class ActionMap:
+    """Maps actions in [-1, 1]^d to the physical parameters of ``tune`` and back."""
+
+    tune: tuple[str, ...]
+    K: int  # state size of one coordinate's model (smallest horizon)
+    horizon_max: int = 400  # frames, N_max
+    psi_max: float = 0.99
+    sigma_decades: float = 1.5  # D: σ ranges over nominal · 10^[-D, D]
+
+    def __post_init__(self) -> None:
+        unknown = [p for p in self.tune if p not in TUNABLE]
+        if unknown or len(set(self.tune)) != len(self.tune) or not self.tune:
+            raise ValueError(f"tune={self.tune!r}: allowed a non-empty tuple of distinct names from {TUNABLE}")
+        if not self.K <= self.horizon_max:
+            raise ValueError(f"horizon_max={self.horizon_max} must be >= K={self.K}")
+
+    @property
+    def dim(self) -> int:
+        return len(self.tune)
+
+    def check(self, actions: np.ndarray) -> np.ndarray:
+        """Validate actions shaped (d,) or (A, d); returns float64 (A, d)."""
+        a = np.asarray(actions, dtype=np.float64)
+        a2 = a.reshape(1, -1) if a.ndim == 1 else a
+        if a2.ndim != 2 or a2.shape[1] != self.dim:
+            raise ValueError(f"action has shape {a.shape}; allowed ({self.dim},) or (A, {self.dim}) for tune={self.tune}")
+        if not np.all(np.isfinite(a2)):
+            raise ValueError(f"action {a.tolist() if a.size <= 8 else a.shape} contains NaN or inf; allowed finite values in [-1, 1]")
+        if np.any(np.abs(a2) > 1 + _TOLERANCE):
+            worst = float(a2.flat[np.argmax(np.abs(a2))])
+            raise ValueError(f"action entry {worst} is out of range: allowed [-1, 1]")
+        return np.clip(a2, -1.0, 1.0)
+
+    def to_params(self, actions: np.ndarray, nominal: Nominal) -> dict[str, np.ndarray]:
+        """Actions (d,) or (A, d) → {name: array (A,)} for every parameter in ``TUNABLE``
+        (untuned ones at their nominal values)."""
+        a = self.check(actions)
+        n = a.shape[0]
+        out = {
+            "psi": np.full(n, nominal.psi),
+            "horizon": np.full(n, nominal.horizon, dtype=np.int64),
+            "sigma_w": np.full(n, nominal.sigma_w),
+            "sigma_v": np.full(n, nominal.sigma_v),
+        }
+        for j, name in enumerate(self.tune):
+            u = (a[:, j] + 1.0) / 2.0
+            if name == "psi":
+                out[name] = self.psi_max * u
+            elif name == "horizon":
+                out[name] = np.rint(self.K * (self.horizon_max / self.K) ** u).astype(np.int64)
+            else:
+                out[name] = getattr(nominal, name) * 10.0 ** (self.sigma_decades * a[:, j])
+        return out
+
+    def to_actions(self, params: dict[str, np.ndarray | float], nominal: Nominal) -> np.ndarray:
+        """Physical parameters → actions (A, d): the inverse of :meth:`to_params` (for baselines).
+
+        Values outside the reachable range raise ``ValueError``."""
+        cols = []
+        for name in self.tune:
+            v = np.atleast_1d(np.asarray(params[name], dtype=np.float64))
+            if name == "psi":
+                a = 2.0 * v / self.psi_max - 1.0
+            elif name == "horizon":
+                a = 2.0 * np.log(v / self.K) / np.log(self.horizon_max / self.K) - 1.0 if self.horizon_max > self.K else np.zeros_like(v)
+            else:
+                a = np.log10(v / getattr(nominal, name)) / self.sigma_decades
+            if np.any(~np.isfinite(a)) or np.any(np.abs(a) > 1 + 1e-9):
+                raise ValueError(f"{name}={v.tolist()} is outside the action range of this env")
+            cols.append(np.clip(a, -1.0, 1.0))
+        return np.stack(cols, axis=-1)

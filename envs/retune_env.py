@@ -1,0 +1,198 @@
+"""``bboxtune/FilterRetune-v0``: re-tune the filter every W frames while it runs over the track."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import filters
+from envs.actions import ACCEPTS, ActionMap
+from envs.config import EnvConfig
+from envs.features import FEATURE_NAMES, measurement_features
+from envs.render import draw_episode
+from envs.scoring import SCORE_KEYS, box_model, reward_from, run_positions, score_estimates
+from envs.sources import K_AXIS, Episode, make_source
+from filters.fir_core import FIRFilter
+
+
+class FilterRetuneEnv(gym.Env):
+    """
+    ## Description
+    The track of :class:`envs.tune_env.FilterTuneEnv` is cut into windows of ``window`` = W frames
+    (default 50). The first window is filtered with the fixed rule (a warm-up the agent observes); then
+    each step sets the filter's parameters for the next window, the filter runs over it and the reward
+    compares the window's estimates with the fixed rule's. The filter's memory carries over across windows:
+
+    * Kalman family (kf, kf_cmn, ukf): the posterior state and covariance at the window's last frame (and,
+      for kf_cmn, the last measurement, needed for the differenced measurement) start the next window,
+      whose new σ/ψ apply from its first frame on (:meth:`filters.base.Filter.run_from`).
+    * FIR family: the measurement buffer is the whole past, so a horizon change takes effect at once: the
+      first estimate of the window already averages over the last N_new measurements (reaching back into
+      earlier windows); nothing is re-initialised, and only while the track is shorter than N_new does the
+      usual start-up rule (growing horizon) apply.
+
+    ## Action Space
+    As FilterTune-v0: ``Box(-1, 1, (d,), float32)`` mapped by ``envs.actions.ActionMap``.
+
+    ## Observation Space
+    ``Box(-inf, inf, (20 + d + 1,), float32)``: the 20 measurement features of ``envs.features`` computed
+    on the last ``history`` frames before the window (default 100; the fixed rule's estimates on them are
+    the pilot residual), then the current action (d entries in [-1, 1]; the rule's action after the
+    warm-up), then the fraction of the track already filtered (0..1).
+
+    ## Rewards
+    Per window, as FilterTune-v0 on the window's frames: ``rmse`` → log(RMSE_rule / RMSE_action) (0 when
+    the window has no ground truth), others action minus rule.
+
+    ## Starting State
+    As FilterTune-v0 (``reset(options={"sequence": ..., "noise_seed": ...})`` pins an episode); the
+    first window is already filtered by the rule.
+
+    ## Episode End
+    ``terminated=True`` after the track's last window (ceil(T / W) − 1 steps); ``truncated`` is never set.
+    ``info`` holds the window's ``rmse``, ``rule_rmse``, ``success_auc``, ``rule_success_auc`` (and the other
+    scores, with ``rule_`` twins), ``n_frames`` (of the window), ``params``, ``rule_params``, ``window``
+    (start, end); the last step adds ``track_rmse`` and ``track_rule_rmse`` over the whole track.
+
+    ## Arguments
+    Those of FilterTune-v0 (``envs.config.EnvConfig``); ``window`` and ``history`` are used here.
+
+    >>> import gymnasium as gym, envs
+    >>> env = gym.make("bboxtune/FilterRetune-v0", backend="kf_cmn", track_length=200, window=50)
+    >>> obs, info = env.reset(seed=1)
+    >>> obs.shape
+    (24,)
+    >>> steps = 0
+    >>> while True:
+    ...     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    ...     steps += 1
+    ...     if terminated:
+    ...         break
+    >>> steps, info["window"]
+    (3, (150, 200))
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode={render_mode!r}; allowed: None, 'rgb_array'")
+        self.render_mode = render_mode
+        self.config = EnvConfig.from_kwargs(**kwargs)
+        self.source = make_source(self.config)
+        self.action_map = ActionMap(tune=self.config.tune, K=K_AXIS, horizon_max=self.config.horizon_max,
+                                    sigma_decades=self.config.sigma_decades)
+        d = self.action_map.dim
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (d,), np.float32)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(FEATURE_NAMES) + d + 1,), np.float32)
+        self.episode: Episode | None = None
+        self._fir = issubclass(filters.filter_class(self.config.backend), FIRFilter)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"sequence", "noise_seed"})
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown}; allowed: 'sequence', 'noise_seed'")
+        noise_seed = options.get("noise_seed")
+        if noise_seed is None:
+            noise_seed = int(self.np_random.integers(2**62))
+        ep = self.source.draw(options.get("sequence"), int(noise_seed))
+        T, W = len(ep.y), self.config.window
+        if T < 2 * W:
+            raise ValueError(f"episode has {T} frames; FilterRetune needs at least 2 windows of window={W} frames")
+        self.episode = ep
+        nominal = ep.nominal
+        self._rule_params = {"psi": np.array([nominal.psi]), "horizon": np.array([nominal.horizon]),
+                             "sigma_w": np.array([nominal.sigma_w]), "sigma_v": np.array([nominal.sigma_v])}
+        self._rule_est = run_positions(self.config.backend, ep.y, ep.tau, self._rule_params)[0]
+        self._action = self.action_map.to_actions(self._rule_params, nominal)[0].astype(np.float32)
+        self._estimate = np.full_like(ep.y, np.nan)
+        self._carry = None
+        self._start = 0
+        self._advance(self._rule_params)  # warm-up window, filtered by the rule
+        return self._observe(), {"track": dict(ep.meta)}
+
+    def _window_bounds(self) -> tuple[int, int]:
+        return self._start, min(self._start + self.config.window, len(self.episode.y))
+
+    def _run_window(self, params: dict[str, np.ndarray], carry: Any) -> tuple[np.ndarray, Any]:
+        """Estimates (A, w, 4) of the current window for candidates ``params`` (arrays (A,)), continuing
+        from ``carry`` (Kalman family) or from the raw measurement history (FIR family)."""
+        ep = self.episode
+        start, end = self._window_bounds()
+        if self._fir:
+            first = max(0, start - int(np.max(params["horizon"])) - 1)  # enough history for every window
+            est = run_positions(self.config.backend, ep.y[first:end], ep.tau, params)
+            return est[:, start - first:], None
+        n = len(params["horizon"])
+        flt = filters.make(self.config.backend, box_model(ep.tau), **{k: params[k] for k in ACCEPTS[self.config.backend]})
+        states, new_carry = flt.run_from(np.broadcast_to(ep.y[start:end], (n, end - start, 4)), carry)
+        return states[..., :4], new_carry
+
+    def _advance(self, params: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        est, self._carry = self._run_window(params, self._carry)
+        start, end = self._window_bounds()
+        self._estimate[start:end] = est[0]
+        self._start = end
+        return est
+
+    def _observe(self) -> np.ndarray:
+        ep, start = self.episode, self._start
+        lo = max(0, start - self.config.history)
+        feats = measurement_features(ep.y[lo:start], ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, self._rule_est[lo:start])
+        progress = np.float32(start / len(ep.y))
+        return np.concatenate([feats, self._action, [progress]]).astype(np.float32)
+
+    def score(self, actions: np.ndarray) -> dict[str, np.ndarray]:
+        """Score actions (A, d) on the *current window* (continuing from the current filter state) in one
+        vectorised run; the same keys as FilterTune-v0's ``score``. Does not advance the episode."""
+        if self.episode is None or self._start >= len(self.episode.y):
+            raise RuntimeError("no window to score: call reset()")
+        params = self.action_map.to_params(actions, self.episode.nominal)
+        est, _ = self._run_window(params, self._broadcast_carry(len(params["horizon"])))
+        return self._score_window(est, params, *self._window_bounds())
+
+    def _broadcast_carry(self, n: int) -> Any:
+        return None if self._carry is None else self._carry.repeat(n)
+
+    def _score_window(self, est: np.ndarray, params: dict[str, np.ndarray], start: int, end: int) -> dict[str, Any]:
+        truth = self.episode.truth[start:end]
+        scores = score_estimates(est, truth)
+        rule = {k: float(v[0]) for k, v in score_estimates(self._rule_est[None, start:end], truth).items()}
+        if not np.isfinite(truth).all(axis=1).any():
+            reward = np.zeros(len(est))
+        else:
+            reward = reward_from(scores, rule, self.config.reward)
+        return {"reward": reward, **scores, "params": params, "estimates": est, "rule": rule}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if self.episode is None or self._start >= len(self.episode.y):
+            raise RuntimeError("episode is over: call reset()")
+        a = self.action_map.check(np.asarray(action).reshape(1, -1))
+        params = self.action_map.to_params(a, self.episode.nominal)
+        start, end = self._window_bounds()
+        est = self._advance(params)
+        result = self._score_window(est, params, start, end)
+        self._action = a[0].astype(np.float32)
+        info: dict[str, Any] = {k: float(result[k][0]) for k in SCORE_KEYS}
+        info.update({f"rule_{k}": result["rule"][k] for k in SCORE_KEYS})
+        info.update(n_frames=end - start, window=(start, end), track=dict(self.episode.meta),
+                    params={k: (int(params[k][0]) if k == "horizon" else float(params[k][0])) for k in ACCEPTS[self.config.backend]},
+                    rule_params={k: (int(v[0]) if k == "horizon" else float(v[0])) for k, v in self._rule_params.items() if k in ACCEPTS[self.config.backend]})
+        terminated = end >= len(self.episode.y)
+        if terminated:
+            both = score_estimates(np.stack([self._estimate, self._rule_est]), self.episode.truth)["rmse"]
+            info.update(track_rmse=float(both[0]), track_rule_rmse=float(both[1]))
+        return self._observe(), float(result["reward"][0]), terminated, False, info
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array" or self.episode is None:
+            return None
+        frame = max(self._start - 1, 0)
+        return draw_episode(self.episode.truth, self.episode.y, self._estimate, frame=frame)

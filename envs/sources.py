@@ -1,0 +1,119 @@
+"""Episode sources: where a track comes from (simulator, OTB ground truth + CMN, real tracker output).
+
+Every episode is a pure function of ``(sequence, noise_seed)``: the env draws the noise seed (and for OTB
+the sequence) from its own ``np_random`` unless ``reset(options=...)`` pins them, so paired comparisons
+can replay exactly the same episode.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from envs.actions import Nominal
+from envs.config import EnvConfig
+from envs.features import box_scale
+from filters.horizon import rule_horizon
+
+K_AXIS = 2  # state size of one coordinate's constant-velocity model
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One track to be filtered: boxes are (cx, cy, w, h) in px."""
+
+    truth: np.ndarray  # (T, 4) true boxes; NaN rows: no ground truth (excluded from scores)
+    y: np.ndarray  # (T, 4) measured boxes; NaN rows: missing detection
+    tau: float  # s, frame interval the filters assume
+    nominal: Nominal  # the fixed rule's parameters for this episode (from measurements / config only)
+    meta: dict[str, Any] = field(default_factory=dict)  # sequence, noise_seed, true scenario (analysis only)
+
+
+def _log_uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
+    lo, hi = lo_hi
+    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+
+def _nominal(cfg: EnvConfig, sigma_v: float, sigma_w: float, tau: float) -> Nominal:
+    horizon = rule_horizon(sigma_v, sigma_w, tau, K_AXIS, max_horizon=cfg.horizon_max)
+    return Nominal(sigma_w=sigma_w, sigma_v=sigma_v, psi=cfg.nominal_psi, horizon=int(horizon))
+
+
+class SimSource:
+    """Simulated CV boxes with Gauss–Markov CMN (:mod:`envs.simulate`); the scenario is drawn per episode
+    from the config's ranges. Nominal σ are the geometric centres of the σ ranges."""
+
+    def __init__(self, cfg: EnvConfig) -> None:
+        from envs.simulate import ScenarioRanges
+
+        self.cfg = cfg
+        self.ranges = ScenarioRanges(
+            psi=cfg.psi_range, sigma_w=cfg.sigma_w_range, sigma_xi=cfg.sigma_xi_range, tau=cfg.tau_range,
+            n_frames=(cfg.track_length, cfg.track_length), size=cfg.box_size_range, ndim=4,
+        )
+        self.sigma_v_nominal = float(np.sqrt(np.prod(cfg.sigma_xi_range)))
+        self.sigma_w_nominal = float(np.sqrt(np.prod(cfg.sigma_w_range)))
+
+    def draw(self, sequence: str | None, noise_seed: int) -> Episode:
+        from envs.simulate import simulate
+
+        if sequence is not None:
+            raise ValueError(f"options['sequence']={sequence!r}: the 'sim' source has no sequences; pin episodes with noise_seed")
+        rng = np.random.default_rng(noise_seed)
+        scenario = self.ranges.sample(rng)
+        track = simulate(scenario, rng)
+        meta = {"sequence": None, "noise_seed": noise_seed, "psi": scenario.psi, "sigma_w": scenario.sigma_w,
+                "sigma_xi": scenario.sigma_xi, "tau": scenario.tau}
+        nominal = _nominal(self.cfg, self.sigma_v_nominal, self.sigma_w_nominal, track.tau)
+        return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta)
+
+
+class OTBSource:
+    """OTB-100 sequences of one split: ground truth + synthetic CMN ("otb") or a tracker's output
+    ("otb_tracker"). Nominal σ are the config's relative values times the measured box scale."""
+
+    def __init__(self, cfg: EnvConfig) -> None:
+        from envs.otb import OTBDataset, split
+
+        self.cfg = cfg
+        self.dataset = OTBDataset(cfg.otb_root)
+        names = split(self.dataset.names)[cfg.split]
+        if cfg.source == "otb_tracker":
+            if cfg.tracker not in self.dataset.trackers:
+                raise ValueError(f"tracker={cfg.tracker!r} not found under {self.dataset.root}; allowed: {self.dataset.trackers}")
+            have = set(self.dataset.tracker_sequences(cfg.tracker))
+            names = tuple(n for n in names if n in have)
+        if not names:
+            raise ValueError(f"no sequences in split {cfg.split!r} for source {cfg.source!r}")
+        self.names = names
+
+    def pick(self, rng: np.random.Generator) -> str:
+        return str(self.names[rng.integers(len(self.names))])
+
+    def draw(self, sequence: str | None, noise_seed: int) -> Episode:
+        from envs.otb import replay_synthetic, replay_tracker
+
+        name = sequence if sequence is not None else self.pick(np.random.default_rng((noise_seed, 0)))
+        if name not in self.dataset.names:
+            raise ValueError(f"options['sequence']={name!r} is not an OTB sequence under {self.dataset.root}")
+        gt = self.dataset.groundtruth(name)
+        cfg = self.cfg
+        meta: dict[str, Any] = {"sequence": name, "noise_seed": noise_seed, "tau": cfg.otb_tau}
+        if cfg.source == "otb":
+            rng = np.random.default_rng((noise_seed, 1))  # independent of the sequence pick above
+            psi = float(rng.uniform(*cfg.psi_range))
+            sigma_rel = _log_uniform(rng, cfg.cmn_rel_range)
+            track = replay_synthetic(gt, psi=psi, sigma_rel=sigma_rel, rng=rng, tau=cfg.otb_tau)
+            meta.update(psi=psi, sigma_rel=sigma_rel)
+        else:
+            track = replay_tracker(gt, self.dataset.tracker_boxes(cfg.tracker, name), tau=cfg.otb_tau)
+            meta.update(tracker=cfg.tracker)
+        scale = box_scale(track.y)
+        nominal = _nominal(cfg, cfg.otb_sigma_v_rel * scale, cfg.otb_sigma_w_rel * scale, track.tau)
+        return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta)
+
+
+def make_source(cfg: EnvConfig) -> SimSource | OTBSource:
+    return SimSource(cfg) if cfg.source == "sim" else OTBSource(cfg)

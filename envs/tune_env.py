@@ -1,0 +1,172 @@
+"""``bboxtune/FilterTune-v0``: tune a smoothing filter once per track (a contextual bandit)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from envs.actions import ActionMap
+from envs.config import EnvConfig
+from envs.features import FEATURE_NAMES, measurement_features
+from envs.render import draw_episode
+from envs.scoring import SCORE_KEYS, reward_from, run_positions, score_estimates
+from envs.sources import K_AXIS, Episode, make_source
+
+
+class FilterTuneEnv(gym.Env):
+    """
+    ## Description
+    One episode is one track of bounding boxes: a simulated constant-velocity box with Gauss–Markov coloured
+    measurement noise (``source="sim"``), OTB-100 ground truth corrupted with such noise (``"otb"``), or a
+    real tracker's OTB-100 output (``"otb_tracker"``). The agent sees a summary of the *measurements* and
+    chooses the smoothing filter's parameters (ψ, horizon N, noise scales) for the whole track; the filter
+    (``backend``) then runs over the track and the reward compares it with the fixed rule of the literature
+    (N = N_opt(σ_v, σ_w, τ) with nominal σ, ψ = ``nominal_psi``) on the same measurements.
+
+    ## Action Space
+    ``Box(-1, 1, (d,), float32)``, one entry per name in ``tune`` (default per back end:
+    ``envs.actions.DEFAULT_TUNE``, e.g. ``("psi", "horizon")`` for ``ufir_cmn``):
+
+    | parameter | mapping from a ∈ [-1, 1]                         | range                      |
+    |-----------|--------------------------------------------------|----------------------------|
+    | psi       | ψ = 0.99 (a + 1) / 2                              | [0, 0.99]                  |
+    | horizon   | N = round(2 (N_max / 2)^((a + 1) / 2)), log scale | integers [2, N_max=400]    |
+    | sigma_w   | σ_w = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]     |
+    | sigma_v   | σ_v = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]     |
+
+    ``envs.actions.ActionMap`` implements it both ways (``to_params`` / ``to_actions``). NaN/inf entries or
+    entries outside [-1, 1] raise ``ValueError``.
+
+    ## Observation Space
+    ``Box(-inf, inf, (20,), float32)``: features of the measured boxes only, never the truth or the true
+    ψ/σ — the table in ``envs.features`` (log box scale [log px], log τ [log s], log-variances of first and
+    second differences of centre and size relative to scale², lag-1..3 autocorrelations of the differences,
+    log N_opt from nominal and from estimated σ [log frames], the σ estimates, residual statistics of the
+    fixed-rule filter, fraction of missing frames, log T).
+
+    ## Rewards
+    ``reward="rmse"`` (default): log(RMSE_rule / RMSE_action), RMSE over all frames with ground truth of the
+    (cx, cy, w, h) error in px — scale-free, 0 means as good as the rule. ``"iou_precision"`` (seed 001's
+    TP/(TP+FP) averaged over 21 IoU thresholds) and ``"success_auc"`` (OTB success AUC): action minus rule.
+
+    ## Starting State
+    ``reset`` draws an episode: for ``sim`` a scenario (ψ ~ U(psi_range), σ_w, σ_ξ log-uniform over their
+    ranges, τ ~ U(tau_range)) and its noise; for OTB sources a sequence of ``split`` (and for ``otb`` the
+    CMN level and ψ). ``reset(options={"sequence": name, "noise_seed": s})`` pins an episode (``sequence``
+    only for OTB sources), so that different methods can be compared on identical data.
+
+    ## Episode End
+    After one step: ``terminated=True``, ``truncated=False``. ``info`` then holds, for the action and for
+    the rule on the same episode: ``rmse``/``rule_rmse``, ``iou_mean``, ``success_auc``,
+    ``precision20``, ``iou_precision`` (each also with a ``rule_`` prefix), ``n_frames``, ``params`` and
+    ``rule_params`` (the physical parameters applied), ``track`` (sequence, noise seed and — for
+    analysis only — the true scenario). ``env.unwrapped.score(actions)`` scores many actions (A, d) on the
+    current episode in one vectorised call and returns the same keys as arrays (A,) plus ``reward``.
+
+    ## Arguments
+    Keyword arguments of ``gym.make`` are the fields of ``envs.config.EnvConfig`` (unknown keys raise
+    ``TypeError``) plus ``render_mode`` (``None`` or ``"rgb_array"``):
+
+    >>> import gymnasium as gym, envs
+    >>> env = gym.make("bboxtune/FilterTune-v0", backend="ufir_cmn", source="sim", track_length=300)
+    >>> obs, info = env.reset(seed=0)
+    >>> obs.shape, env.action_space.shape
+    ((20,), (2,))
+    >>> obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    >>> terminated, truncated, info["n_frames"]
+    (True, False, 300)
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode={render_mode!r}; allowed: None, 'rgb_array'")
+        self.render_mode = render_mode
+        self.config = EnvConfig.from_kwargs(**kwargs)
+        self.source = make_source(self.config)
+        self.action_map = ActionMap(tune=self.config.tune, K=K_AXIS, horizon_max=self.config.horizon_max,
+                                    sigma_decades=self.config.sigma_decades)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.action_map.dim,), np.float32)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(FEATURE_NAMES),), np.float32)
+        self.episode: Episode | None = None
+        self._rule: dict[str, Any] = {}
+        self._estimate: np.ndarray | None = None
+        self._done = True
+
+    # -- episode ---------------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"sequence", "noise_seed"})
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown}; allowed: 'sequence', 'noise_seed'")
+        noise_seed = options.get("noise_seed")
+        if noise_seed is None:
+            noise_seed = int(self.np_random.integers(2**62))
+        self.episode = self.source.draw(options.get("sequence"), int(noise_seed))
+        rule_params = self._rule_params(self.episode)
+        rule_est = run_positions(self.config.backend, self.episode.y, self.episode.tau, rule_params)
+        rule_scores = {k: float(v[0]) for k, v in score_estimates(rule_est, self.episode.truth).items()}
+        self._rule = {"params": rule_params, "estimate": rule_est[0], "scores": rule_scores}
+        self._estimate = None
+        self._done = False
+        self._obs = self._observe()
+        return self._obs.copy(), {"track": dict(self.episode.meta)}
+
+    def _rule_params(self, ep: Episode) -> dict[str, np.ndarray]:
+        nominal = ep.nominal
+        return {"psi": np.array([nominal.psi]), "horizon": np.array([nominal.horizon]),
+                "sigma_w": np.array([nominal.sigma_w]), "sigma_v": np.array([nominal.sigma_v])}
+
+    def _observe(self) -> np.ndarray:
+        ep = self.episode
+        return measurement_features(ep.y, ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, self._rule["estimate"])
+
+    def score(self, actions: np.ndarray) -> dict[str, np.ndarray]:
+        """Score actions (A, d) on the current episode in one vectorised filter run.
+
+        Returns ``reward``, ``rmse``, ``iou_mean``, ``success_auc``, ``precision20``, ``iou_precision``
+        (arrays (A,)) and ``params`` (dict of arrays (A,)); equal to what :meth:`step` returns per action."""
+        if self.episode is None:
+            raise RuntimeError("call reset() before score()")
+        params = self.action_map.to_params(actions, self.episode.nominal)
+        est = run_positions(self.config.backend, self.episode.y, self.episode.tau, params)
+        scores = score_estimates(est, self.episode.truth)
+        return {"reward": reward_from(scores, self._rule["scores"], self.config.reward), **scores,
+                "params": params, "estimates": est}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if self._done:
+            raise RuntimeError("episode is over (one step per episode): call reset()")
+        result = self.score(np.asarray(action)[None] if np.ndim(action) == 1 else action)
+        self._estimate = result["estimates"][0]
+        self._done = True
+        info = self._info(result)
+        return self._obs.copy(), float(result["reward"][0]), True, False, info
+
+    def _info(self, result: dict[str, Any]) -> dict[str, Any]:
+        rule = self._rule
+        info: dict[str, Any] = {k: float(result[k][0]) for k in SCORE_KEYS}
+        info.update({f"rule_{k}": rule["scores"][k] for k in SCORE_KEYS})
+        info["n_frames"] = int(len(self.episode.y))
+        info["params"] = self._physical(result["params"])
+        info["rule_params"] = self._physical(rule["params"])
+        info["track"] = dict(self.episode.meta)
+        return info
+
+    def _physical(self, params: dict[str, np.ndarray]) -> dict[str, float | int]:
+        from envs.actions import ACCEPTS
+
+        return {k: (int(params[k][0]) if k == "horizon" else float(params[k][0])) for k in ACCEPTS[self.config.backend]}
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array" or self.episode is None:
+            return None
+        est = self._estimate if self._estimate is not None else self._rule["estimate"]
+        return draw_episode(self.episode.truth, self.episode.y, est)

@@ -1,0 +1,87 @@
+"""Environment benchmark: how fast episodes go through ``gym.make`` + ``step`` and through batched scoring.
+
+    python scripts/bench_env.py [--backend ufir_cmn] [--episodes 2000] [--candidates 256] [--track-length 500]
+
+For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks) it prints
+
+1. steps/s through the public API: ``env.reset(); env.step(action)`` on ``gym.make``'s wrapped env (one
+   step per episode, so every step includes drawing, simulating and summarising a new track and the
+   fixed-rule run it is compared with) — target >= 1,000 steps/s;
+2. episodes/s through the batched scoring path ``env.unwrapped.score(actions)`` with ``--candidates``
+   distinct actions per call (each candidate is one filtered and scored episode) — target >= 5,000;
+3. the share of a step spent in the filter itself, from the same run, as a ratio.
+
+Rates are the best of ``--repeat`` timed blocks (the machine is shared; the best block is the least
+disturbed). No unit test asserts on time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import envs  # noqa: F401  (registers the environments)
+import filters
+
+
+def best_rate(count: int, fn, repeat: int) -> float:
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return count / best
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--backend", default="ufir_cmn", choices=filters.NAMES)
+    ap.add_argument("--episodes", type=int, default=1000, help="steps per timed block")
+    ap.add_argument("--candidates", type=int, default=256, help="actions per score() call")
+    ap.add_argument("--calls", type=int, default=10, help="score() calls per timed block")
+    ap.add_argument("--track-length", type=int, default=500)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+
+    env = gym.make("bboxtune/FilterTune-v0", backend=args.backend, track_length=args.track_length)
+    env.reset(seed=args.seed)
+    env.action_space.seed(args.seed)
+    actions = [env.action_space.sample() for _ in range(args.episodes)]
+
+    def steps() -> None:
+        for a in actions:
+            env.reset()
+            env.step(a)
+
+    step_rate = best_rate(args.episodes, steps, args.repeat)
+    print(f"{args.backend}, {args.track_length}-frame box tracks, sim source")
+    print(f"[1] gym.make + reset + step: {step_rate:,.0f} steps/s (target >= 1,000)")
+
+    u = env.unwrapped
+    rng = np.random.default_rng(args.seed)
+    batches = [rng.uniform(-1, 1, (args.candidates, u.action_map.dim)).astype(np.float32) for _ in range(args.calls)]
+
+    def scores() -> None:
+        for b in batches:
+            env.reset()
+            u.score(b)
+
+    score_rate = best_rate(args.calls * args.candidates, scores, args.repeat)
+    print(f"[2] batched score(), {args.candidates} candidates per call: {score_rate:,.0f} episodes/s (target >= 5,000)")
+
+    env.reset(seed=args.seed)
+    ep = u.episode
+    params = u.action_map.to_params(actions[0], ep.nominal)
+    from envs.scoring import run_positions
+
+    filter_rate = best_rate(args.episodes, lambda: [run_positions(args.backend, ep.y, ep.tau, params) for _ in range(args.episodes)], args.repeat)
+    print(f"[3] the filter alone (one candidate): {filter_rate:,.0f} runs/s; a step costs "
+          f"{filter_rate / step_rate:.1f} filter runs (a step includes a rule run, the simulation, features, scoring)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,90 @@
+"""Action mapping (both directions) and measurement-only features."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from envs.actions import ACCEPTS, DEFAULT_TUNE, ActionMap, Nominal
+from envs.features import FEATURE_NAMES, estimate_sigmas, measurement_features
+
+NOMINAL = Nominal(sigma_w=10.0, sigma_v=2.0, psi=0.0, horizon=24)
+FULL = ActionMap(tune=("psi", "horizon", "sigma_w", "sigma_v"), K=2, horizon_max=400)
+
+
+def test_default_tune_is_accepted_by_each_backend() -> None:
+    for backend, tune in DEFAULT_TUNE.items():
+        assert set(tune) <= set(ACCEPTS[backend])
+
+
+def test_mapping_endpoints() -> None:
+    p = FULL.to_params(np.array([[-1, -1, -1, -1], [1, 1, 1, 1], [0, 0, 0, 0]]), NOMINAL)
+    np.testing.assert_allclose(p["psi"], [0.0, 0.99, 0.495])
+    np.testing.assert_array_equal(p["horizon"], [2, 400, round(2 * 200**0.5)])
+    np.testing.assert_allclose(p["sigma_w"], [10 * 10**-1.5, 10 * 10**1.5, 10.0])
+    np.testing.assert_allclose(p["sigma_v"], [2 * 10**-1.5, 2 * 10**1.5, 2.0])
+
+
+def test_untuned_parameters_stay_nominal() -> None:
+    amap = ActionMap(tune=("horizon",), K=2)
+    p = amap.to_params(np.array([0.3]), NOMINAL)
+    assert p["psi"][0] == 0.0 and p["sigma_w"][0] == 10.0 and p["sigma_v"][0] == 2.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0, 0.99), st.integers(2, 400), st.floats(-1.5, 1.5), st.floats(-1.5, 1.5))
+def test_params_actions_round_trip(psi: float, horizon: int, lw: float, lv: float) -> None:
+    params = {"psi": psi, "horizon": horizon, "sigma_w": 10.0 * 10**lw, "sigma_v": 2.0 * 10**lv}
+    a = FULL.to_actions(params, NOMINAL)
+    back = FULL.to_params(a.astype(np.float32), NOMINAL)  # policies emit float32
+    assert back["horizon"][0] == horizon
+    np.testing.assert_allclose(back["psi"][0], psi, atol=1e-6)
+    np.testing.assert_allclose(back["sigma_w"][0], params["sigma_w"], rtol=1e-5)
+
+
+@pytest.mark.parametrize("bad", [[np.nan, 0, 0, 0], [0, np.inf, 0, 0], [0, 0, 1.01, 0], [0, 0, 0]])
+def test_bad_actions_raise(bad: list[float]) -> None:
+    with pytest.raises(ValueError, match="action"):
+        FULL.to_params(np.array(bad), NOMINAL)
+
+
+def test_unreachable_parameters_raise() -> None:
+    with pytest.raises(ValueError, match="horizon"):
+        FULL.to_actions({"psi": 0, "horizon": 1000, "sigma_w": 10, "sigma_v": 2}, NOMINAL)
+
+
+def test_bad_tune_raises() -> None:
+    with pytest.raises(ValueError, match="tune"):
+        ActionMap(tune=("psi", "psi"), K=2)
+
+
+def _track(rng: np.random.Generator, T: int = 400, sigma_v: float = 2.0, sigma_w: float = 30.0, tau: float = 0.05):
+    from envs.simulate import Scenario, simulate
+
+    track = simulate(Scenario(psi=0.0, sigma_w=sigma_w, sigma_xi=sigma_v, tau=tau, n_frames=T, ndim=4), rng)
+    return track.truth, track.y
+
+
+def test_features_finite_and_named() -> None:
+    rng = np.random.default_rng(0)
+    _, y = _track(rng)
+    f = measurement_features(y, 0.05, 2.0, 30.0, y)
+    assert f.shape == (len(FEATURE_NAMES),) and f.dtype == np.float32 and np.all(np.isfinite(f))
+
+
+def test_features_finite_on_degenerate_input() -> None:
+    y = np.full((10, 4), 5.0)
+    y[3] = np.nan
+    f = measurement_features(y, 0.05, 1.0, 1.0, y)
+    assert np.all(np.isfinite(f))
+    assert f[FEATURE_NAMES.index("frac_missing")] == pytest.approx(0.1)
+
+
+def test_sigma_estimates_recover_white_noise_statistics() -> None:
+    rng = np.random.default_rng(3)
+    _, y = _track(rng, T=20000, sigma_v=2.0, sigma_w=30.0)
+    sv, sw = estimate_sigmas(y, 0.05)
+    assert sv == pytest.approx(2.0, rel=0.05)
+    assert sw == pytest.approx(30.0, rel=0.25)

@@ -1,0 +1,190 @@
+"""bboxtune/FilterTune-v0 and bboxtune/FilterRetune-v0: checkers, determinism, scoring, bad input."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import envs
+import filters
+from tests.envs.conftest import OTB_ROOT, needs_otb
+
+SOURCES = ["sim", pytest.param("otb", marks=needs_otb), pytest.param("otb_tracker", marks=needs_otb)]
+SHORT = {"track_length": 120}
+
+
+def _make(env_id: str, backend: str, source: str, **kw) -> gym.Env:
+    extra = {"otb_root": OTB_ROOT} if source != "sim" else dict(SHORT)
+    return gym.make(env_id, backend=backend, source=source, **extra, **kw)
+
+
+@pytest.mark.parametrize("source", SOURCES)
+@pytest.mark.parametrize("backend", filters.NAMES)
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_checkers_pass(env_id: str, backend: str, source: str) -> None:
+    env = _make(env_id, backend, source, window=30) if "Retune" in env_id else _make(env_id, backend, source)
+    gym_check_env(env.unwrapped, skip_render_check=True)
+    sb3_check_env(env.unwrapped, warn=True)
+
+
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_same_seed_same_everything(env_id: str) -> None:
+    runs = []
+    for _ in range(2):
+        env = _make(env_id, "ufir_cmn", "sim")
+        obs, _ = env.reset(seed=123)
+        env.action_space.seed(5)
+        obs2, reward, *_, info = env.step(env.action_space.sample())
+        runs.append((obs, obs2, reward, info["rmse"], info["rule_rmse"], info["params"]))
+    assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][1], runs[1][1])
+    assert runs[0][2:] == runs[1][2:]
+
+
+def test_noise_seed_pins_the_episode() -> None:
+    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+    a, _ = env.reset(seed=1, options={"noise_seed": 77})
+    b, _ = env.reset(seed=2, options={"noise_seed": 77})
+    c, _ = env.reset(seed=1, options={"noise_seed": 78})
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+
+
+@needs_otb
+def test_sequence_option_pins_otb_episode() -> None:
+    env = _make("bboxtune/FilterTune-v0", "kf_cmn", "otb")
+    _, info = env.reset(seed=0, options={"sequence": "Car4", "noise_seed": 3})
+    assert info["track"]["sequence"] == "Car4"
+    with pytest.raises(ValueError, match="Nope"):
+        env.reset(options={"sequence": "Nope"})
+
+
+@pytest.mark.parametrize("backend", filters.NAMES)
+def test_rule_action_reproduces_the_rule(backend: str) -> None:
+    env = _make("bboxtune/FilterTune-v0", backend, "sim")
+    env.reset(seed=4)
+    u = env.unwrapped
+    nominal = u.episode.nominal
+    rule = {"psi": nominal.psi, "horizon": nominal.horizon, "sigma_w": nominal.sigma_w, "sigma_v": nominal.sigma_v}
+    action = u.action_map.to_actions(rule, nominal)[0]
+    _, reward, _, _, info = env.step(action.astype(np.float32))
+    assert reward == pytest.approx(0.0, abs=1e-9)
+    assert info["rmse"] == pytest.approx(info["rule_rmse"], rel=1e-9)
+
+
+@pytest.mark.parametrize("backend", ["ufir_cmn", "kf_cmn", "oufir"])
+def test_score_equals_step(backend: str) -> None:
+    env = _make("bboxtune/FilterTune-v0", backend, "sim")
+    env.reset(seed=9)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (6, env.action_space.shape[0])).astype(np.float32)
+    batch = env.unwrapped.score(actions)
+    for i, a in enumerate(actions):
+        env.reset(seed=9)
+        _, reward, _, _, info = env.step(a)
+        assert reward == pytest.approx(batch["reward"][i], rel=1e-10, abs=1e-12)
+        assert info["rmse"] == pytest.approx(batch["rmse"][i], rel=1e-10)
+        assert info["success_auc"] == pytest.approx(batch["success_auc"][i], abs=1e-12)
+
+
+def test_reward_is_log_rmse_ratio_and_info_keys() -> None:
+    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+    env.reset(seed=2)
+    _, reward, terminated, truncated, info = env.step(np.array([0.5, 0.2], np.float32))
+    assert terminated and not truncated
+    assert reward == pytest.approx(np.log(info["rule_rmse"] / info["rmse"]))
+    for key in ("rmse", "rule_rmse", "success_auc", "rule_success_auc", "n_frames", "params"):
+        assert key in info
+    assert set(info["params"]) == {"psi", "horizon"} and isinstance(info["params"]["horizon"], int)
+    assert {"psi", "sigma_w", "sigma_xi", "tau"} <= set(info["track"])
+
+
+@pytest.mark.parametrize("reward", ["iou_precision", "success_auc"])
+def test_bounded_rewards_are_differences_to_the_rule(reward: str) -> None:
+    env = _make("bboxtune/FilterTune-v0", "kf_cmn", "sim", reward=reward)
+    env.reset(seed=3)
+    _, r, *_, info = env.step(np.zeros(3, np.float32))
+    assert r == pytest.approx(info[reward] - info[f"rule_{reward}"])
+
+
+def test_observation_uses_measurements_only() -> None:
+    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+    obs, _ = env.reset(seed=5)
+    u = env.unwrapped
+    ep = u.episode
+    from dataclasses import replace
+
+    u.episode = replace(ep, truth=ep.truth + 1000.0, meta={**ep.meta, "psi": 0.0, "sigma_w": 1e3})
+    assert np.array_equal(u._observe(), obs)
+
+
+@pytest.mark.parametrize("bad", [np.array([np.nan, 0.0]), np.array([0.0, np.inf]), np.array([2.0, 0.0])])
+def test_bad_actions_raise(bad: np.ndarray) -> None:
+    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        env.step(bad.astype(np.float32))
+
+
+def test_bad_arguments_fail_loudly() -> None:
+    with pytest.raises(TypeError, match="bogus"):
+        gym.make("bboxtune/FilterTune-v0", bogus=1)
+    with pytest.raises(ValueError, match="backend"):
+        gym.make("bboxtune/FilterTune-v0", backend="nope")
+    with pytest.raises(ValueError, match="tune"):
+        gym.make("bboxtune/FilterTune-v0", backend="ufir", tune=("psi",))
+    with pytest.raises(ValueError, match="reset option"):
+        env = gym.make("bboxtune/FilterTune-v0", **SHORT)
+        env.reset(options={"noise": 1})
+
+
+def test_step_after_episode_end_raises() -> None:
+    env = _make("bboxtune/FilterTune-v0", "ufir", "sim")
+    env.reset(seed=0)
+    env.step(np.zeros(1, np.float32))
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(1, np.float32))
+
+
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_render_rgb_array(env_id: str) -> None:
+    env = gym.make(env_id, render_mode="rgb_array", **SHORT)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    img = env.render()
+    assert img.dtype == np.uint8 and img.shape == (480, 480, 3)
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) >= 4  # background + three colours
+
+
+def test_sb3_vector_wrappers() -> None:
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    venv = VecNormalize(make_vec_env("bboxtune/FilterTune-v0", n_envs=2, seed=0, env_kwargs=SHORT),
+                        norm_obs=True, norm_reward=False)
+    obs = venv.reset()
+    for _ in range(3):
+        obs, rewards, dones, infos = venv.step(np.zeros((2, 2), np.float32))
+        assert obs.shape == (2, 20) and dones.all() and "episode" in infos[0]  # Monitor's episode summary
+
+
+def test_fused_scores_equal_the_metric_functions() -> None:
+    from envs import metrics
+    from envs.boxes import cxcywh_to_xywh
+    from envs.scoring import score_estimates
+
+    rng = np.random.default_rng(0)
+    truth = np.column_stack([rng.uniform(50, 60, (80, 2)), rng.uniform(10, 20, (80, 2))])
+    truth[[3, 40]] = np.nan
+    est = truth[None] + rng.normal(0, 4, (3, 80, 4))
+    est[:, 10] = np.nan  # no estimate yet: an IoU failure, not a detection, and not in the RMSE
+    got = score_estimates(est, truth)
+    p, g = cxcywh_to_xywh(est), cxcywh_to_xywh(truth)
+    np.testing.assert_allclose(got["success_auc"], metrics.success_auc(p, g), rtol=1e-12)
+    np.testing.assert_allclose(got["precision20"], metrics.precision_score(p, g), rtol=1e-12)
+    np.testing.assert_allclose(got["iou_precision"], metrics.iou_precision(p, g).mean(axis=-1), rtol=1e-12)
+    ok = np.isfinite(truth).all(axis=1)
+    with_est = ok & np.isfinite(est[0]).all(axis=1)
+    np.testing.assert_allclose(got["rmse"], metrics.rmse_total(est[:, with_est], truth[with_est]), rtol=1e-12)
+    np.testing.assert_allclose(got["iou_mean"], np.nan_to_num(metrics.iou(p, g)[:, ok]).mean(axis=1), rtol=1e-12)
