@@ -22,8 +22,10 @@ cumulative sums / FFT moment sums, no per-pattern gains) overrides ``_startup`` 
 
 from __future__ import annotations
 
+import copy
 from abc import abstractmethod
 from collections import OrderedDict
+from functools import cached_property
 from typing import Any, ClassVar
 
 import numpy as np
@@ -31,7 +33,7 @@ import scipy.fft as sfft
 
 from filters.base import Filter
 from filters.horizon import rule_horizon
-from filters.model import StateSpaceModel
+from filters.model import StateSpaceModel, constant_velocity
 from filters.validation import check_horizon, check_positive
 
 CACHE_BYTES = 64 * 2**20  # bytes of gains kept by the LRU gain cache (shared by all FIR back ends)
@@ -126,6 +128,30 @@ class FIRFilter(Filter):
 
     # ------------------------------------------------------------------------------------------------
     def _run_axes(self, z: np.ndarray, params: dict[str, Any]) -> np.ndarray:
+        """Run in frame units: with the velocity measured per frame (v τ) the model at interval τ is exactly
+        the model at τ = 1 with acceleration noise σ_w τ² (F(τ), B(τ) w → F(1), B(1) τ² w), so every gain is
+        computed — and cached — once for all frame intervals; the velocity is scaled back by 1/τ."""
+        tau = self.model.tau
+        if tau == 1.0:
+            return self._run_frames(z, params)
+        X = self._in_frames._run_frames(z, self.params_in_frames(params, tau))
+        X[..., 1] /= tau
+        return X
+
+    @cached_property
+    def _in_frames(self) -> FIRFilter:
+        """This filter on the same coordinates at τ = 1 with its parameters in frame units."""
+        twin = copy.copy(self)
+        twin.model = constant_velocity(1.0, ndim=self.model.ndim)
+        twin.params = self.params_in_frames(self.params, self.model.tau)
+        return twin
+
+    def params_in_frames(self, params: dict[str, Any], tau: float) -> dict[str, Any]:
+        """``params`` with every time-dependent quantity converted to frame units (σ_w → σ_w τ²); back ends
+        with further such parameters (OFIR's prior covariance) extend this."""
+        return {**params, "sigma_w": np.asarray(params["sigma_w"]) * tau**2}
+
+    def _run_frames(self, z: np.ndarray, params: dict[str, Any]) -> np.ndarray:
         C, T = z.shape
         valid = np.isfinite(z)
         group, gparams = self._groups(params)

@@ -12,7 +12,7 @@ run every coordinate of every track as one batch of two-state problems.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -61,11 +61,20 @@ def constant_velocity(tau: float, ndim: int = 1) -> StateSpaceModel:
     tau = float(check_positive("tau", tau))
     if not isinstance(ndim, (int, np.integer)) or ndim < 1:
         raise ValueError(f"ndim={ndim!r} must be an integer >= 1")
-    eye = np.eye(ndim)
-    zero = np.zeros((ndim, ndim))
-    F = np.block([[eye, tau * eye], [zero, eye]])
-    H = np.hstack([eye, zero])
-    B = np.vstack([0.5 * tau**2 * eye, tau * eye])
+    return _constant_velocity(tau, int(ndim))
+
+
+@lru_cache(maxsize=1024)
+def _constant_velocity(tau: float, ndim: int) -> StateSpaceModel:
+    """Built once per (τ, ndim): the models are immutable (read-only arrays, frozen dataclass)."""
+    K = 2 * ndim
+    idx = np.arange(ndim)
+    F = np.eye(K)
+    F[idx, ndim + idx] = tau
+    H = np.eye(ndim, K)
+    B = np.zeros((K, ndim))
+    B[idx, idx] = 0.5 * tau**2
+    B[ndim + idx, idx] = tau
     for a in (F, H, B):
         a.setflags(write=False)
-    return StateSpaceModel(F=F, H=H, B=B, tau=tau, ndim=int(ndim))
+    return StateSpaceModel(F=F, H=H, B=B, tau=tau, ndim=ndim)

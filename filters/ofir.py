@@ -101,6 +101,14 @@ class OFIR(KalmanWindowFIR):
         out["P0"] = check_prior(params["P0"])
         return out
 
+    def params_in_frames(self, params: dict[str, Any], tau: float) -> dict[str, Any]:
+        """As the base class, and the prior covariance of [p, v] becomes that of [p, v τ]."""
+        out = super().params_in_frames(params, tau)
+        if params["P0"] is not None:
+            S = np.diag([1.0, tau])
+            out["P0"] = S @ params["P0"] @ S
+        return out
+
     def prior(self, sigma_v: float) -> np.ndarray:
         """The horizon-start prior covariance for a channel with measurement noise std ``sigma_v``."""
         return default_prior(sigma_v, self.model.tau) if self.params["P0"] is None else self.params["P0"]
