@@ -8,7 +8,7 @@ from typing import Any
 import filters
 from envs.actions import ACCEPTS, DEFAULT_TUNE
 
-SOURCES = ("sim", "otb", "otb_tracker")
+SOURCES = ("sim", "otb", "otb_tracker", "video")
 SPLITS = ("train", "val", "test")
 REWARDS = ("rmse", "iou_precision", "success_auc")
 
@@ -17,7 +17,7 @@ REWARDS = ("rmse", "iou_precision", "success_auc")
 class EnvConfig:
     """Every argument of ``bboxtune/FilterTune-v0`` and ``bboxtune/FilterRetune-v0`` (units in comments)."""
 
-    source: str = "sim"  # "sim" | "otb" (ground truth + synthetic CMN) | "otb_tracker" (real tracker output)
+    source: str = "sim"  # "sim" | "otb" (GT + synthetic CMN) | "otb_tracker" (real tracker output) | "video"
     backend: str = "ufir_cmn"  # any name in filters.NAMES
     reward: str = "rmse"  # "rmse": log(RMSE_rule / RMSE); "iou_precision" / "success_auc": difference to the rule
     tune: tuple[str, ...] | None = None  # parameters the agent sets; None -> envs.actions.DEFAULT_TUNE[backend]
@@ -36,6 +36,13 @@ class EnvConfig:
     cmn_rel_range: tuple[float, float] = (0.01, 0.1)  # source "otb": σ_ξ relative to the box size, log-uniform
     otb_sigma_v_rel: float = 0.03  # nominal σ_v relative to the measured box scale (OTB sources)
     otb_sigma_w_rel: float = 3.0  # 1/s², nominal σ_w relative to the measured box scale (OTB sources)
+    # source "video": synthetic videos measured by a real detector (envs.video.source.VideoSource)
+    detector: str = "template"  # one of envs.video.detectors.DETECTORS
+    video_pool: int = 64  # distinct videos per split
+    video_cache: str | None = None  # folder caching rendered + detected videos; None: memory only
+    video_size: tuple[int, int] = (320, 240)  # px, frame width and height
+    video_sigma_v_rel: float | None = None  # nominal σ_v / box scale; None: the detector's calibrated value
+    video_sigma_w_rel: float | None = None  # 1/s², nominal σ_w / box scale; None: calibrated value
     # action mapping
     horizon_max: int = 400  # frames, largest FIR horizon the agent can choose
     sigma_decades: float = 1.5  # σ scales span nominal · 10^[-D, D]
@@ -67,6 +74,10 @@ class EnvConfig:
                 raise ValueError(f"{name}={(lo, hi)!r}; allowed: 0 < low <= high (0 <= low for psi)")
         if self.psi_range[1] >= 1 or not 0 <= self.nominal_psi < 1:
             raise ValueError(f"psi_range={self.psi_range!r}, nominal_psi={self.nominal_psi!r}; allowed within [0, 1)")
+        if self.source == "video":
+            from envs.video.source import VideoSettings
+
+            VideoSettings.from_config(self)  # validates the video fields
         if self.horizon_max < 2 or self.horizon_max > 10_000:
             raise ValueError(f"horizon_max={self.horizon_max!r}; allowed: 2 <= horizon_max <= 10000")
 
@@ -77,7 +88,7 @@ class EnvConfig:
         unknown = sorted(set(kwargs) - known)
         if unknown:
             raise TypeError(f"unknown env argument(s) {unknown}; allowed: {sorted(known)}")
-        for key in ("tune", "psi_range", "sigma_w_range", "sigma_xi_range", "tau_range", "box_size_range", "cmn_rel_range"):
+        for key in ("tune", "video_size", "psi_range", "sigma_w_range", "sigma_xi_range", "tau_range", "box_size_range", "cmn_rel_range"):
             if key in kwargs and kwargs[key] is not None:
                 kwargs[key] = tuple(kwargs[key])
         return cls(**kwargs)

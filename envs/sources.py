@@ -115,5 +115,12 @@ class OTBSource:
         return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta)
 
 
-def make_source(cfg: EnvConfig) -> SimSource | OTBSource:
-    return SimSource(cfg) if cfg.source == "sim" else OTBSource(cfg)
+def make_source(cfg: EnvConfig) -> Any:
+    """The episode source of ``cfg.source``: each has ``draw(sequence, noise_seed) -> Episode``."""
+    if cfg.source == "sim":
+        return SimSource(cfg)
+    if cfg.source == "video":
+        from envs.video.source import VideoSource
+
+        return VideoSource(cfg)
+    return OTBSource(cfg)

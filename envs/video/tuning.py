@@ -1,0 +1,132 @@
+"""Filter parameters for video episodes: the fixed rule, a grid-searched fixed action, or a trained tuner.
+
+Actions follow the env's mapping (:class:`envs.actions.ActionMap`, default ``tune`` of the back end), so
+a tuned action means the same thing relative to every episode's nominal σ as it does in the env.
+
+* :func:`grid_tune` — one action for a whole video set: the point of a regular grid over [-1, 1]^d with the
+  best mean score over *training* episodes (no test data); saved/loaded as JSON (:class:`FixedTuner`).
+* :func:`load_tuner` — a ``tuned.json`` from :func:`grid_tune` or a ``scripts/train.py`` run directory
+  (``config.yml`` + ``model.zip`` [+ ``vecnormalize.pkl``], loaded by ``agents.runs.SB3Policy``): the policy
+  sees the env's observation features of each episode (:func:`envs.features.measurement_features`) and its
+  back end and ``tune`` come from the run's ``env_kwargs``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from envs.actions import DEFAULT_TUNE, ActionMap
+from envs.features import measurement_features
+from envs.scoring import run_positions, score_estimates
+from envs.sources import K_AXIS, Episode
+
+
+def action_map(backend: str, tune: Sequence[str] | None = None, horizon_max: int = 400,
+               sigma_decades: float = 1.5) -> ActionMap:
+    """The env's action mapping for ``backend`` (defaults as :class:`envs.config.EnvConfig`)."""
+    return ActionMap(tune=tuple(tune or DEFAULT_TUNE[backend]), K=K_AXIS, horizon_max=horizon_max,
+                     sigma_decades=sigma_decades)
+
+
+def rule_params(ep: Episode) -> dict[str, np.ndarray]:
+    """The fixed rule's parameters of an episode, as arrays (1,)."""
+    n = ep.nominal
+    return {"psi": np.array([n.psi]), "horizon": np.array([n.horizon]), "sigma_w": np.array([n.sigma_w]),
+            "sigma_v": np.array([n.sigma_v])}
+
+
+class Tuner(ABC):
+    """Chooses an action per episode for ``backend``."""
+
+    backend: str
+    actions: ActionMap
+
+    @abstractmethod
+    def act(self, ep: Episode) -> np.ndarray:
+        """Action (d,) in [-1, 1] for episode ``ep``."""
+
+    def params(self, ep: Episode) -> dict[str, np.ndarray]:
+        """Physical parameters (arrays (1,)) for ``ep``."""
+        return self.actions.to_params(self.act(ep), ep.nominal)
+
+
+class FixedTuner(Tuner):
+    """The same action for every episode (e.g. from :func:`grid_tune`)."""
+
+    def __init__(self, backend: str, action: np.ndarray, actions: ActionMap | None = None) -> None:
+        self.backend = backend
+        self.actions = actions or action_map(backend)
+        self.action = self.actions.check(action)[0]
+
+    def act(self, ep: Episode) -> np.ndarray:
+        return self.action
+
+    def save(self, path: str | os.PathLike, **info: Any) -> None:
+        """Write ``{"backend", "tune", "horizon_max", "sigma_decades", "action", **info}`` as JSON."""
+        a = self.actions
+        doc = {"backend": self.backend, "tune": list(a.tune), "horizon_max": a.horizon_max,
+               "sigma_decades": a.sigma_decades, "action": self.action.tolist(), **info}
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(doc, indent=2))
+
+
+class PolicyTuner(Tuner):
+    """A trained tuner (``agents.runs.SB3Policy``) acting on the env's observation features."""
+
+    def __init__(self, policy: Any, backend: str, actions: ActionMap) -> None:
+        self.policy, self.backend, self.actions = policy, backend, actions
+
+    def act(self, ep: Episode) -> np.ndarray:
+        rule = run_positions(self.backend, ep.y, ep.tau, rule_params(ep))[0]
+        obs = measurement_features(ep.y, ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, rule)
+        return self.actions.check(self.policy.predict(obs[None]))[0]
+
+
+def grid_tune(episodes: Sequence[Episode], backend: str, points: int = 9, metric: str = "success_auc",
+              actions: ActionMap | None = None) -> tuple[FixedTuner, float]:
+    """The grid action (``points`` per tuned dimension, [-1, 1]) with the best mean ``metric`` over
+    ``episodes`` (``"rmse"``: lowest mean log RMSE; any other score key of :func:`envs.scoring.score_estimates`:
+    highest mean). Returns the tuner and its mean score."""
+    amap = actions or action_map(backend)
+    if points < 2:
+        raise ValueError(f"points={points}; allowed: >= 2")
+    grid = np.array(list(itertools.product(np.linspace(-1.0, 1.0, points), repeat=amap.dim)))
+    total = np.zeros(len(grid))
+    for ep in episodes:
+        est = run_positions(backend, ep.y, ep.tau, amap.to_params(grid, ep.nominal))
+        scores = score_estimates(est, ep.truth)
+        total += -np.log(scores["rmse"]) if metric == "rmse" else np.nan_to_num(scores[metric])
+    best = int(np.argmax(total))
+    return FixedTuner(backend, grid[best], amap), float(total[best] / max(len(episodes), 1))
+
+
+def load_tuner(path: str | os.PathLike) -> Tuner:
+    """A :class:`FixedTuner` from a JSON file (or a folder holding ``tuned.json``), or a
+    :class:`PolicyTuner` from a ``scripts/train.py`` run directory (has ``config.yml``)."""
+    path = Path(path)
+    if path.is_dir() and (path / "config.yml").is_file():
+        from agents.runs import SB3Policy, load_config  # lazy: envs must not need agents otherwise
+        from envs.config import EnvConfig
+
+        cfg = EnvConfig.from_kwargs(**load_config(path)["env_kwargs"])
+        amap = action_map(cfg.backend, cfg.tune, cfg.horizon_max, cfg.sigma_decades)
+        return PolicyTuner(SB3Policy.load(path), cfg.backend, amap)
+    file = path / "tuned.json" if path.is_dir() else path
+    if not file.is_file():
+        raise ValueError(f"--tuned {path}: neither a train.py run directory (config.yml) nor a tuned.json file")
+    doc = json.loads(file.read_text())
+    try:
+        amap = action_map(doc["backend"], doc["tune"], doc["horizon_max"], doc["sigma_decades"])
+        return FixedTuner(doc["backend"], np.asarray(doc["action"], dtype=float), amap)
+    except KeyError as err:
+        raise ValueError(f"{file}: missing key {err}; a tuned.json has backend, tune, horizon_max, "
+                         "sigma_decades, action") from None

@@ -1,0 +1,48 @@
+#!/usr/bin/env python
+"""Speed of the video front end: synthetic rendering (s per 200-frame 320×240 video) and detector frame rates.
+
+    python scripts/bench_video.py [--videos 5] [--frames 200]
+
+Prints rates only (speed is never asserted by the tests). Run on an idle machine for meaningful numbers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+
+from envs.video.camera import background_shift  # noqa: E402
+from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
+from envs.video.synthetic import VideoRanges, synthetic_video  # noqa: E402
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--videos", type=int, default=5)
+    p.add_argument("--frames", type=int, default=200)
+    args = p.parse_args(argv)
+    ranges = VideoRanges(n_frames=args.frames)
+    start = time.perf_counter()
+    videos = [list(synthetic_video(2_000_000 + i, ranges)) for i in range(args.videos)]
+    render = (time.perf_counter() - start) / args.videos
+    print(f"render: {render:.2f} s per {args.frames}-frame 320x240 video ({args.frames / render:.0f} frames/s)")
+    truth = [synthetic_video(2_000_000 + i, ranges).boxes[0] for i in range(args.videos)]
+    for name in DETECTORS:
+        start = time.perf_counter()
+        for frames, box in zip(videos, truth):
+            detect_video(make_detector(name), frames, box)
+        rate = args.videos * args.frames / (time.perf_counter() - start)
+        print(f"{name:9s} {rate:7.0f} frames/s")
+    start = time.perf_counter()
+    for frames in videos:
+        background_shift(frames)
+    print(f"camera shift estimate {args.videos * args.frames / (time.perf_counter() - start):7.0f} frames/s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
