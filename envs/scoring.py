@@ -52,15 +52,19 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
     overlap = np.where(detected, metrics.iou(pred_xywh, gt_xywh), 0.0)  # (A, n)
     centre = np.where(detected, metrics.center_error(pred_xywh, gt_xywh), np.inf)
     n = max(int(valid.sum()), 1)
-    above = overlap[..., None] > metrics.SUCCESS_THRESHOLDS  # (A, n, 21), strict as the OTB toolkit
-    true_pos = ((overlap[..., None] >= metrics.SUCCESS_THRESHOLDS) & detected[..., None]).sum(axis=1)  # IoU >= thr
-    n_detected = detected.sum(axis=1)[:, None]
+    # per frame, the number of the 21 IoU thresholds below (success: IoU > t, strict as the OTB toolkit) and
+    # at or below (seed 001 true positive: IoU >= t) the frame's IoU; averaging these counts over frames and
+    # thresholds is the mean over thresholds of the per-threshold rates
+    below = np.searchsorted(metrics.SUCCESS_THRESHOLDS, overlap, side="left")
+    at_or_below = np.where(detected, np.searchsorted(metrics.SUCCESS_THRESHOLDS, overlap, side="right"), 0)
+    n_thresholds = len(metrics.SUCCESS_THRESHOLDS)
+    n_detected = detected.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        iou_precision = np.where(n_detected > 0, true_pos / np.maximum(n_detected, 1), np.nan).mean(axis=1)
+        iou_precision = np.where(n_detected > 0, at_or_below.sum(axis=1) / (n_thresholds * np.maximum(n_detected, 1)), np.nan)
     return {
         "rmse": rmse,
         "iou_mean": overlap.sum(axis=1) / n,
-        "success_auc": above.sum(axis=1).mean(axis=1) / n,
+        "success_auc": below.sum(axis=1) / (n_thresholds * n),
         "precision20": (centre <= metrics.PRECISION_AT).sum(axis=1) / n,
         "iou_precision": iou_precision,
     }

@@ -188,3 +188,17 @@ def test_fused_scores_equal_the_metric_functions() -> None:
     with_est = ok & np.isfinite(est[0]).all(axis=1)
     np.testing.assert_allclose(got["rmse"], metrics.rmse_total(est[:, with_est], truth[with_est]), rtol=1e-12)
     np.testing.assert_allclose(got["iou_mean"], np.nan_to_num(metrics.iou(p, g)[:, ok]).mean(axis=1), rtol=1e-12)
+
+
+def test_fused_scores_on_threshold_boundaries() -> None:
+    from envs import metrics
+    from envs.boxes import cxcywh_to_xywh
+    from envs.scoring import score_estimates
+
+    truth = np.tile([10.0, 10.0, 4.0, 4.0], (3, 1))
+    est = np.stack([truth, truth + [2.0, 0, 0, 0], truth + [4.0 / 3, 0, 0, 0]])  # IoU 1, 1/3, exactly 0.5
+    got = score_estimates(est, truth)
+    p, g = cxcywh_to_xywh(est), cxcywh_to_xywh(truth)
+    np.testing.assert_allclose(got["success_auc"], metrics.success_auc(p, g), rtol=1e-12)
+    np.testing.assert_allclose(got["iou_precision"], metrics.iou_precision(p, g).mean(axis=-1), rtol=1e-12)
+    assert got["success_auc"][0] == pytest.approx(20 / 21) and got["iou_precision"][0] == 1.0
