@@ -4,20 +4,18 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 import filters
-from envs.actions import ACCEPTS, ActionMap
+from envs.actions import ACCEPTS
 from envs.config import EnvConfig
-from envs.features import FEATURE_NAMES, measurement_features
-from envs.render import draw_episode
+from envs.features import measurement_features
 from envs.scoring import SCORE_KEYS, box_model, reward_from, run_positions, score_estimates
-from envs.sources import K_AXIS, Episode, make_source
+from envs.track_env import TrackEnv
 from filters.fir_core import FIRFilter
 
 
-class FilterRetuneEnv(gym.Env):
+class FilterRetuneEnv(TrackEnv):
     """
     ## Description
     The track of :class:`envs.tune_env.FilterTuneEnv` is cut into windows of ``window`` = W frames
@@ -77,41 +75,20 @@ class FilterRetuneEnv(gym.Env):
     * v0: initial version.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
-
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode={render_mode!r}; allowed: None, 'rgb_array'")
-        self.render_mode = render_mode
-        self.config = EnvConfig.from_kwargs(**kwargs)
-        self.source = make_source(self.config)
-        self.action_map = ActionMap(tune=self.config.tune, K=K_AXIS, horizon_max=self.config.horizon_max,
-                                    sigma_decades=self.config.sigma_decades)
-        d = self.action_map.dim
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (d,), np.float32)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(FEATURE_NAMES) + d + 1,), np.float32)
-        self.episode: Episode | None = None
+        tune = EnvConfig.from_kwargs(**kwargs).tune
+        super().__init__(len(tune) + 1, render_mode=render_mode, **kwargs)
         self._fir = issubclass(filters.filter_class(self.config.backend), FIRFilter)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
-        super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = sorted(set(options) - {"sequence", "noise_seed"})
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; allowed: 'sequence', 'noise_seed'")
-        noise_seed = options.get("noise_seed")
-        if noise_seed is None:
-            noise_seed = int(self.np_random.integers(2**62))
-        ep = self.source.draw(options.get("sequence"), int(noise_seed))
+        ep = self._draw(seed, options)
         T, W = len(ep.y), self.config.window
         if T < 2 * W:
             raise ValueError(f"episode has {T} frames; FilterRetune needs at least 2 windows of window={W} frames")
         self.episode = ep
-        nominal = ep.nominal
-        self._rule_params = {"psi": np.array([nominal.psi]), "horizon": np.array([nominal.horizon]),
-                             "sigma_w": np.array([nominal.sigma_w]), "sigma_v": np.array([nominal.sigma_v])}
+        self._rule_params = self.rule_params(ep)
         self._rule_est = run_positions(self.config.backend, ep.y, ep.tau, self._rule_params)[0]
-        self._action = self.action_map.to_actions(self._rule_params, nominal)[0].astype(np.float32)
+        self._action = self.action_map.to_actions(self._rule_params, ep.nominal)[0].astype(np.float32)
         self._estimate = np.full_like(ep.y, np.nan)
         self._carry = None
         self._start = 0
@@ -183,8 +160,7 @@ class FilterRetuneEnv(gym.Env):
         info: dict[str, Any] = {k: float(result[k][0]) for k in SCORE_KEYS}
         info.update({f"rule_{k}": result["rule"][k] for k in SCORE_KEYS})
         info.update(n_frames=end - start, window=(start, end), track=dict(self.episode.meta),
-                    params={k: (int(params[k][0]) if k == "horizon" else float(params[k][0])) for k in ACCEPTS[self.config.backend]},
-                    rule_params={k: (int(v[0]) if k == "horizon" else float(v[0])) for k, v in self._rule_params.items() if k in ACCEPTS[self.config.backend]})
+                    params=self.physical(params), rule_params=self.physical(self._rule_params))
         terminated = end >= len(self.episode.y)
         if terminated:
             both = score_estimates(np.stack([self._estimate, self._rule_est]), self.episode.truth)["rmse"]
@@ -192,7 +168,4 @@ class FilterRetuneEnv(gym.Env):
         return self._observe(), float(result["reward"][0]), terminated, False, info
 
     def render(self) -> np.ndarray | None:
-        if self.render_mode != "rgb_array" or self.episode is None:
-            return None
-        frame = max(self._start - 1, 0)
-        return draw_episode(self.episode.truth, self.episode.y, self._estimate, frame=frame)
+        return self._render(self._estimate, frame=max(self._start - 1, 0)) if self.episode is not None else None

@@ -4,18 +4,14 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
-from envs.actions import ActionMap
-from envs.config import EnvConfig
-from envs.features import FEATURE_NAMES, measurement_features
-from envs.render import draw_episode
+from envs.features import measurement_features
 from envs.scoring import SCORE_KEYS, reward_from, run_positions, score_estimates
-from envs.sources import K_AXIS, Episode, make_source
+from envs.track_env import TrackEnv
 
 
-class FilterTuneEnv(gym.Env):
+class FilterTuneEnv(TrackEnv):
     """
     ## Description
     One episode is one track of bounding boxes: a simulated constant-velocity box with Gauss–Markov coloured
@@ -82,35 +78,16 @@ class FilterTuneEnv(gym.Env):
     * v0: initial version.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
-
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode={render_mode!r}; allowed: None, 'rgb_array'")
-        self.render_mode = render_mode
-        self.config = EnvConfig.from_kwargs(**kwargs)
-        self.source = make_source(self.config)
-        self.action_map = ActionMap(tune=self.config.tune, K=K_AXIS, horizon_max=self.config.horizon_max,
-                                    sigma_decades=self.config.sigma_decades)
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.action_map.dim,), np.float32)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(FEATURE_NAMES),), np.float32)
-        self.episode: Episode | None = None
+        super().__init__(0, render_mode=render_mode, **kwargs)
         self._rule: dict[str, Any] = {}
         self._estimate: np.ndarray | None = None
         self._done = True
 
     # -- episode ---------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
-        super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = sorted(set(options) - {"sequence", "noise_seed"})
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; allowed: 'sequence', 'noise_seed'")
-        noise_seed = options.get("noise_seed")
-        if noise_seed is None:
-            noise_seed = int(self.np_random.integers(2**62))
-        self.episode = self.source.draw(options.get("sequence"), int(noise_seed))
-        rule_params = self._rule_params(self.episode)
+        self.episode = self._draw(seed, options)
+        rule_params = self.rule_params(self.episode)
         rule_est = run_positions(self.config.backend, self.episode.y, self.episode.tau, rule_params)
         rule_scores = {k: float(v[0]) for k, v in score_estimates(rule_est, self.episode.truth).items()}
         self._rule = {"params": rule_params, "estimate": rule_est[0], "scores": rule_scores}
@@ -118,11 +95,6 @@ class FilterTuneEnv(gym.Env):
         self._done = False
         self._obs = self._observe()
         return self._obs.copy(), {"track": dict(self.episode.meta)}
-
-    def _rule_params(self, ep: Episode) -> dict[str, np.ndarray]:
-        nominal = ep.nominal
-        return {"psi": np.array([nominal.psi]), "horizon": np.array([nominal.horizon]),
-                "sigma_w": np.array([nominal.sigma_w]), "sigma_v": np.array([nominal.sigma_v])}
 
     def _observe(self) -> np.ndarray:
         ep = self.episode
@@ -155,18 +127,10 @@ class FilterTuneEnv(gym.Env):
         info: dict[str, Any] = {k: float(result[k][0]) for k in SCORE_KEYS}
         info.update({f"rule_{k}": rule["scores"][k] for k in SCORE_KEYS})
         info["n_frames"] = int(len(self.episode.y))
-        info["params"] = self._physical(result["params"])
-        info["rule_params"] = self._physical(rule["params"])
+        info["params"] = self.physical(result["params"])
+        info["rule_params"] = self.physical(rule["params"])
         info["track"] = dict(self.episode.meta)
         return info
 
-    def _physical(self, params: dict[str, np.ndarray]) -> dict[str, float | int]:
-        from envs.actions import ACCEPTS
-
-        return {k: (int(params[k][0]) if k == "horizon" else float(params[k][0])) for k in ACCEPTS[self.config.backend]}
-
     def render(self) -> np.ndarray | None:
-        if self.render_mode != "rgb_array" or self.episode is None:
-            return None
-        est = self._estimate if self._estimate is not None else self._rule["estimate"]
-        return draw_episode(self.episode.truth, self.episode.y, est)
+        return self._render(self._estimate if self._estimate is not None else self._rule.get("estimate"))

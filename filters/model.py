@@ -78,3 +78,13 @@ def _constant_velocity(tau: float, ndim: int) -> StateSpaceModel:
     for a in (F, H, B):
         a.setflags(write=False)
     return StateSpaceModel(F=F, H=H, B=B, tau=tau, ndim=ndim)
+
+
+def matrix_powers(A: np.ndarray, n: int) -> np.ndarray:
+    """``[A⁰, A¹, …, A^{n−1}]`` stacked (n, K, K), by doubling (about log₂ n stacked products)."""
+    powers = np.eye(A.shape[0])[None]
+    step = np.asarray(A, dtype=float)
+    while powers.shape[0] < n:
+        powers = np.concatenate([powers, powers @ step])
+        step = step @ step
+    return powers[:n]

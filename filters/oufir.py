@@ -27,18 +27,10 @@ import numpy as np
 import scipy.linalg as sla
 
 from filters.fir_core import FIRFilter, check_fir_params
+from filters.model import matrix_powers
 
 COND_MAX = 1e8  # bound on cond(Ψ_Y/σ_v²) above which the ML least-squares form replaces the Cholesky form
 
-
-def matrix_powers(F: np.ndarray, n: int) -> np.ndarray:
-    """``[F⁰, F¹, …, F^{n−1}]`` stacked (n, K, K), by doubling (log₂ n stacked products)."""
-    powers = np.eye(F.shape[0])[None]
-    F_step = np.asarray(F, dtype=float)
-    while powers.shape[0] < n:
-        powers = np.concatenate([powers, powers @ F_step])
-        F_step = F_step @ F_step
-    return powers[:n]
 
 
 def window_model(F: np.ndarray, H: np.ndarray, B: np.ndarray, L: int) -> tuple[np.ndarray, ...]:

@@ -33,7 +33,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from filters.fir_core import FIRFilter, check_fir_params
-from filters.model import constant_velocity
+from filters.model import constant_velocity, matrix_powers
 
 
 class UFIR(FIRFilter):
@@ -150,15 +150,6 @@ def _clean_gain(tau: float, L: int) -> np.ndarray:
     gain.setflags(write=False)
     return gain
 
-
-def matrix_powers(A: np.ndarray, n: int) -> np.ndarray:
-    """``[A⁰, A¹, …, A^{n−1}]`` stacked (n, K, K), by doubling (about log₂ n stacked products)."""
-    powers = np.eye(A.shape[0])[None]
-    step = np.asarray(A, dtype=float)
-    while powers.shape[0] < n:
-        powers = np.concatenate([powers, powers @ step])
-        step = step @ step
-    return powers[:n]
 
 
 def back_projected_rows(F: np.ndarray, H: np.ndarray, L: int) -> np.ndarray:

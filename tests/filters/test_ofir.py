@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 import filters
 from filters.ofir import default_prior, ofir_gain, ofir_iterative
@@ -88,29 +86,6 @@ def test_long_horizon_converges_to_steady_state_kf() -> None:
     assert np.abs(W[:, -1] - K).max() < 1e-11
 
 
-def test_batched_and_per_track_parameters_equal_separate_runs() -> None:
-    rng = np.random.default_rng(4)
-    model = filters.constant_velocity(TAU, ndim=2)
-    y = np.stack([np.stack([simulate(rng, 60), simulate(rng, 60)], axis=1) for _ in range(3)])
-    y[2, 30:34, 1] = np.nan
-    sw, sv, N = np.array([50.0, 5.0, 50.0]), np.array([4.0, 1.0, 3.0]), np.array([20, 6, 41])
-    batched = filters.make("ofir", model, sigma_w=sw, sigma_v=sv, horizon=N).run(y)
-    for b in range(3):
-        single = filters.make("ofir", model, sigma_w=sw[b], sigma_v=sv[b], horizon=int(N[b])).run(y[b])
-        np.testing.assert_allclose(batched[b], single, rtol=1e-12, atol=1e-9)
-
-
-@settings(max_examples=25, deadline=None)
-@given(sigma_w=st.floats(1e-6, 1e6), sigma_v=st.floats(1e-6, 1e6),
-       N=st.one_of(st.integers(2, 12), st.integers(2, 10_000)),
-       T=st.integers(1, 12), seed=st.integers(0, 2**16), drop=st.floats(0.0, 0.5))
-def test_finite_input_gives_finite_output(sigma_w: float, sigma_v: float, N: int, T: int, seed: int,
-                                          drop: float) -> None:
-    rng = np.random.default_rng(seed)
-    y = rng.normal(size=(2, T, 1)) * 100 + 300
-    y[:, 1:][rng.random((2, T - 1, 1)) < drop] = np.nan
-    out = filters.make("ofir", filters.constant_velocity(TAU), sigma_w=sigma_w, sigma_v=sigma_v, horizon=N).run(y)
-    assert np.all(np.isfinite(out))
 
 
 @pytest.mark.parametrize("params, name", [

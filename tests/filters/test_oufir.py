@@ -145,28 +145,30 @@ def test_long_horizon_run_converges_to_kf_run() -> None:
         assert lo < np.abs(out[400:] - kf[400:]).max() < hi
 
 
-def test_batched_and_per_track_parameters_equal_separate_runs() -> None:
+@pytest.mark.parametrize("name", ["oufir", "fir", "ofir"])
+def test_batched_and_per_track_parameters_equal_separate_runs(name: str) -> None:
     rng = np.random.default_rng(3)
     model = filters.constant_velocity(TAU, ndim=2)
     y = np.stack([np.stack([simulate(rng, 70), simulate(rng, 70)], axis=1) for _ in range(3)])
     y[1, 20:23, 0] = np.nan
     sw, sv, N = np.array([50.0, 5.0, 50.0]), np.array([4.0, 1.0, 4.0]), np.array([20, 7, 33])
-    batched = filters.make("oufir", model, sigma_w=sw, sigma_v=sv, horizon=N).run(y)
+    batched = filters.make(name, model, sigma_w=sw, sigma_v=sv, horizon=N).run(y)
     for b in range(3):
-        single = filters.make("oufir", model, sigma_w=sw[b], sigma_v=sv[b], horizon=int(N[b])).run(y[b])
+        single = filters.make(name, model, sigma_w=sw[b], sigma_v=sv[b], horizon=int(N[b])).run(y[b])
         np.testing.assert_allclose(batched[b], single, rtol=1e-12, atol=1e-9)
 
 
+@pytest.mark.parametrize("name", ["oufir", "fir", "ofir"])
 @settings(max_examples=25, deadline=None)
 @given(sigma_w=st.floats(1e-6, 1e6), sigma_v=st.floats(1e-6, 1e6),
        N=st.one_of(st.integers(2, 12), st.integers(2, 10_000)),
        T=st.integers(1, 12), seed=st.integers(0, 2**16), drop=st.floats(0.0, 0.5))
-def test_finite_input_gives_finite_output(sigma_w: float, sigma_v: float, N: int, T: int, seed: int,
+def test_finite_input_gives_finite_output(name: str, sigma_w: float, sigma_v: float, N: int, T: int, seed: int,
                                           drop: float) -> None:
     rng = np.random.default_rng(seed)
     y = rng.normal(size=(2, T, 1)) * 100 + 300
     y[:, 1:][rng.random((2, T - 1, 1)) < drop] = np.nan  # frame 0 stays valid, so every output is defined
-    out = filters.make("oufir", filters.constant_velocity(TAU), sigma_w=sigma_w, sigma_v=sigma_v,
+    out = filters.make(name, filters.constant_velocity(TAU), sigma_w=sigma_w, sigma_v=sigma_v,
                        horizon=N).run(y)
     assert np.all(np.isfinite(out))
 
