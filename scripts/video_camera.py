@@ -35,7 +35,6 @@ from tqdm import tqdm  # noqa: E402
 from video_common import bootstrap_ci, write_atomic, write_csv, write_json  # noqa: E402
 
 import filters  # noqa: E402
-from envs.boxes import xywh_to_cxcywh  # noqa: E402
 from envs.config import EnvConfig  # noqa: E402
 from envs.video.camera import UKF_CAMERA, background_shift, run_compensated  # noqa: E402
 from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
