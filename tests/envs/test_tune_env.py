@@ -153,7 +153,7 @@ def test_render_rgb_array(env_id: str) -> None:
     env.reset(seed=0)
     env.step(env.action_space.sample())
     img = env.render()
-    assert img.dtype == np.uint8 and img.shape == (480, 480, 3)
+    assert img.dtype == np.uint8 and img.shape == (480, 960, 3)
     assert len(np.unique(img.reshape(-1, 3), axis=0)) >= 4  # background + three colours
 
 
