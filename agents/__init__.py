@@ -1,1 +1,10 @@
-"""bboxtune tuners: stable-baselines3 agents and non-learned baselines."""
+"""bboxtune tuners: stable-baselines3 agents and non-learned baselines.
+
+* :mod:`agents.algos` — ``ALGOS`` (ppo, sac, td3, a2c); :mod:`agents.hyperparams` — YAML hyperparameters
+  (``agents/hyperparams/<algo>.yml``, RL Zoo layout).
+* :mod:`agents.baselines` — the policy interface and the rule / oracle / global / amortised baselines;
+  :mod:`agents.adaptive` — the Sage–Husa adaptive KF.
+* :mod:`agents.splits` — train / val / test noise-seed splits; :mod:`agents.episodes` — pinned episodes.
+* :mod:`agents.runs`, :mod:`agents.callbacks` — run directories and checkpoints of ``scripts/train.py``;
+  :mod:`agents.evaluate`, :mod:`agents.stats`, :mod:`agents.report`, :mod:`agents.plots` — ``scripts/compare.py``.
+"""

@@ -1,0 +1,15 @@
+"""The stable-baselines3 algorithms a tuner can be trained with (one dict, as RL Baselines3 Zoo)."""
+
+from __future__ import annotations
+
+from stable_baselines3 import A2C, PPO, SAC, TD3
+from stable_baselines3.common.base_class import BaseAlgorithm
+
+ALGOS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3, "a2c": A2C}
+
+
+def algo_class(name: str) -> type[BaseAlgorithm]:
+    """The SB3 class of algorithm ``name`` (a key of :data:`ALGOS`)."""
+    if name not in ALGOS:
+        raise ValueError(f"algo={name!r}; allowed: {sorted(ALGOS)}")
+    return ALGOS[name]
