@@ -146,6 +146,7 @@ class GridSearch:
     refine: int = 5  # points per dimension in a refinement round (3 for d >= 4)
 
     def points(self, d: int) -> int:
+        """Grid values per dimension of the first stage: floor(budget^(1/d)), at least 3."""
         return max(3, int(np.floor(self.budget ** (1.0 / d) + 1e-9)))
 
     def search(self, score: ScoreFn, d: int, extra: np.ndarray | None = None) -> tuple[np.ndarray, float]:
@@ -206,7 +207,8 @@ class GlobalPolicy(ObsPolicy):
     @classmethod
     def fit(cls, bank: EpisodeBank, *, n_trials: int = 64, batch: int = 8, seed: int = 0,
             progress: bool = False) -> GlobalPolicy:
-        """Tune on ``bank``: TPE (constant liar, ``batch`` trials scored together on every episode)."""
+        """Tune on ``bank``: TPE (constant liar, ``batch`` trials scored together on every episode; ``n_trials``
+        is rounded up to a multiple of ``batch``; the first trial is the centre of the action box)."""
         d = bank.action_map.dim
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         sampler = optuna.samplers.TPESampler(seed=seed, constant_liar=True, n_startup_trials=min(16, n_trials))
