@@ -35,6 +35,7 @@ from stable_baselines3.common.vec_env import VecNormalize  # noqa: E402
 import envs  # noqa: E402,F401
 import filters  # noqa: E402
 from agents.algos import ALGOS, algo_class  # noqa: E402
+from envs.config import SOURCES  # noqa: E402
 from agents.callbacks import AtomicCheckpoint, EpisodeLog, SaveBestNormalizer, restore_eval_state  # noqa: E402
 from agents.hyperparams import constructor_kwargs, load_hyperparams  # noqa: E402
 from agents.plots import learning_curve  # noqa: E402
@@ -59,7 +60,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--algo", default="ppo", choices=sorted(ALGOS), help="SB3 algorithm")
     p.add_argument("--env", default=DEFAULT_ENV, help="env id (registered by `import envs`)")
     p.add_argument("--backend", default="ufir_cmn", choices=filters.NAMES, help="filter back end the tuner sets")
-    p.add_argument("--source", default="sim", choices=("sim", "otb", "otb_tracker"), help="episode source")
+    p.add_argument("--source", default="sim", choices=SOURCES, help="episode source (video: set --env-kwargs detector:NAME)")
     p.add_argument("--reward", default="rmse", choices=("rmse", "iou_precision", "success_auc"), help="env reward")
     p.add_argument("--timesteps", type=int, default=None,
                    help="total env steps (one step = one episode for FilterTune-v0); default: n_timesteps of "
