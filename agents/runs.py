@@ -16,6 +16,8 @@ replaced atomically (``os.replace``), so a run killed at any moment resumes from
 
 from __future__ import annotations
 
+import argparse
+
 import json
 import os
 import shutil
@@ -150,3 +152,14 @@ class SB3Policy(ObsPolicy):
             normalizer = VecNormalize.load(str(norm_path), dummy)
             normalizer.training, normalizer.norm_reward = False, False
         return cls(model, normalizer, name=cfg["algo"])
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Shows the module docstring as written and appends real defaults (not None/False/empty) to the help."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        default = action.default
+        shown = not (default is None or default is False or default == [] or default == argparse.SUPPRESS)
+        if action.help and shown and "%(default)" not in action.help:
+            return action.help + " (default: %(default)s)"
+        return action.help or ""

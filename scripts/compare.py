@@ -28,25 +28,14 @@ from agents.baselines import GridSearch  # noqa: E402
 from agents.evaluate import BaselineSettings, evaluate, fit_baselines, standard_policies  # noqa: E402
 from agents.plots import gain_boxplot, otb_curves, trajectories  # noqa: E402
 from agents.report import by_method, summary_markdown, write_results_csv  # noqa: E402
-from agents.runs import SB3Policy, load_config, make_env  # noqa: E402
+from agents.runs import HelpFormatter, SB3Policy, load_config, make_env  # noqa: E402
 from agents.splits import eval_seeds  # noqa: E402
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"
 
 
-class _Help(argparse.RawDescriptionHelpFormatter):
-    """Shows the module docstring as written and appends real defaults (not None/False/empty) to the help."""
-
-    def _get_help_string(self, action: argparse.Action) -> str:
-        default = action.default
-        shown = not (default is None or default is False or default == [] or default == argparse.SUPPRESS)
-        if action.help and shown and "%(default)" not in action.help:
-            return action.help + " (default: %(default)s)"
-        return action.help or ""
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=_Help)
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=HelpFormatter)
     p.add_argument("--model", type=Path, required=True, metavar="RUN_DIR", help="a scripts/train.py run directory")
     p.add_argument("--episodes", type=int, default=500, help="test episodes (test split episodes 0 .. N-1)")
     p.add_argument("--seed", type=int, default=0, help="seed of the baselines' training episodes, Optuna, the regressor and the bootstrap")

@@ -39,24 +39,13 @@ from envs.config import SOURCES  # noqa: E402
 from agents.callbacks import AtomicCheckpoint, EpisodeLog, SaveBestNormalizer, restore_eval_state  # noqa: E402
 from agents.hyperparams import constructor_kwargs, load_hyperparams  # noqa: E402
 from agents.plots import learning_curve  # noqa: E402
-from agents.runs import latest_checkpoint, load_config, make_vec, write_text_atomic  # noqa: E402
+from agents.runs import HelpFormatter, latest_checkpoint, load_config, make_vec, write_text_atomic  # noqa: E402
 
 DEFAULT_ENV = "bboxtune/FilterTune-v0"
 
 
-class _Help(argparse.RawDescriptionHelpFormatter):
-    """Shows the module docstring as written and appends real defaults (not None/False/empty) to the help."""
-
-    def _get_help_string(self, action: argparse.Action) -> str:
-        default = action.default
-        shown = not (default is None or default is False or default == [] or default == argparse.SUPPRESS)
-        if action.help and shown and "%(default)" not in action.help:
-            return action.help + " (default: %(default)s)"
-        return action.help or ""
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=_Help)
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=HelpFormatter)
     p.add_argument("--algo", default="ppo", choices=sorted(ALGOS), help="SB3 algorithm")
     p.add_argument("--env", default=DEFAULT_ENV, help="env id (registered by `import envs`)")
     p.add_argument("--backend", default="ufir_cmn", choices=filters.NAMES, help="filter back end the tuner sets")
