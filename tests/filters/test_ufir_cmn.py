@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 import filters
 from filters.ufir import back_projected_rows, ufir_iterative
 from filters.ufir_cmn import UFIRCMN
+from tests.filters.test_ufir import assert_close
 
 TAU = 0.05
 MODEL1 = filters.constant_velocity(TAU, ndim=1)
@@ -25,14 +26,6 @@ def cmn_track(T: int, psi: float, seed: int = 0) -> np.ndarray:
     for l in range(1, T):
         v[l] = psi * v[l - 1] + rng.normal(0.0, 4.0)
     return 300.0 + np.cumsum(velocity) * TAU + v
-
-
-def assert_close(fast: np.ndarray, ref: np.ndarray, rtol: float = 1e-8) -> None:
-    """Equal to rtol relative to each state component's largest magnitude (NaN where the other is NaN)."""
-    np.testing.assert_array_equal(np.isnan(fast), np.isnan(ref))
-    scale = np.maximum(np.nanmax(np.abs(ref), axis=0), 1.0)
-    worst = np.nanmax(np.abs(fast - ref), axis=0, initial=0.0) / scale
-    assert np.all(worst < rtol), f"relative difference {worst} >= {rtol}"
 
 
 def run1(y: np.ndarray, **params) -> np.ndarray:
