@@ -37,14 +37,19 @@ def _boxes(name: str, boxes: ArrayLike) -> np.ndarray:
     return arr
 
 
+def _check_sequences(names: tuple[str, str], a: np.ndarray, b: np.ndarray, layout: str) -> None:
+    """Both arrays are sequences (rank >= 2) of broadcast-compatible shapes (ValueError naming them)."""
+    if a.ndim < 2 or b.ndim < 2:
+        raise ValueError(f"{names[0]} {a.shape} and {names[1]} {b.shape} must be sequences shaped {layout}")
+    try:
+        np.broadcast_shapes(a.shape, b.shape)
+    except ValueError:
+        raise ValueError(f"{names[0]} shape {a.shape} does not match {names[1]} shape {b.shape}") from None
+
+
 def _pair(pred: ArrayLike, gt: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     p, g = _boxes("pred", pred), _boxes("gt", gt)
-    if p.ndim < 2 or g.ndim < 2:
-        raise ValueError(f"pred {p.shape} and gt {g.shape} must be sequences shaped (..., T, 4)")
-    try:
-        np.broadcast_shapes(p.shape, g.shape)
-    except ValueError:
-        raise ValueError(f"pred shape {p.shape} does not match gt shape {g.shape}") from None
+    _check_sequences(("pred", "gt"), p, g, "(..., T, 4)")
     return p, g
 
 
@@ -176,12 +181,7 @@ def f_score(pred: ArrayLike, gt: ArrayLike, thresholds: ArrayLike = SUCCESS_THRE
 
 def _errors(est: ArrayLike, truth: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     e, t = np.asarray(est, dtype=float), np.asarray(truth, dtype=float)
-    if e.ndim < 2 or t.ndim < 2:
-        raise ValueError(f"est {e.shape} and truth {t.shape} must be shaped (..., T, M)")
-    try:
-        np.broadcast_shapes(e.shape, t.shape)
-    except ValueError:
-        raise ValueError(f"est shape {e.shape} does not match truth shape {t.shape}") from None
+    _check_sequences(("est", "truth"), e, t, "(..., T, M)")
     valid = ~np.isnan(t)
     return np.where(valid, e - np.where(valid, t, 0.0), 0.0), valid
 

@@ -159,3 +159,10 @@ def test_score_sequences_ragged_matches_per_sequence():
         score_sequences([preds[0], preds[1][:-1]], gts[:2])
     with pytest.raises(ValueError, match="equal counts"):
         score_sequences(preds[:2], gts)
+
+
+def test_mismatched_sequences_raise_naming_both_sides() -> None:
+    with pytest.raises(ValueError, match="pred shape .* does not match gt shape"):
+        success_auc(np.zeros((3, 4)), np.zeros((5, 4)))
+    with pytest.raises(ValueError, match="est .* and truth .* must be sequences"):
+        rmse(np.zeros(4), np.zeros((2, 4)))

@@ -59,7 +59,7 @@ def test_video_file_round_trip(tmp_path):
     path = tmp_path / "clip.mp4"
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 25.0, (32, 24))
     if not writer.isOpened():
-        pytest.skip("no MP4 writer in this OpenCV build")
+        pytest.skip(reason="this OpenCV build has no mp4v VideoWriter, so there is no file to read back")
     for n in range(6):
         writer.write(np.full((24, 32, 3), 40 * n, np.uint8))
     writer.release()
