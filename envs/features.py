@@ -30,6 +30,8 @@ Degenerate statistics (fewer than 4 valid differences, zero variance) are floore
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from filters.horizon import n_opt
@@ -44,41 +46,64 @@ _VAR_FLOOR = 1e-12
 
 
 def autocovariance(x: np.ndarray, lags: int) -> np.ndarray:
-    """Pooled autocovariances c_0..c_lags of the columns of ``x`` (T, m), NaN-aware: each column is
-    centred on its own mean, and lag-k products are averaged over the pairs where both samples exist."""
+    """Pooled autocovariances c_0..c_lags (..., lags + 1) of the m series of ``x`` (..., m, T) (time last),
+    NaN-aware: each series is centred on its own mean, and lag-k products are averaged over the pairs where
+    both samples exist (0 where there is no such pair). Leading axes are independent tracks."""
+    m, T = x.shape[-2:]
     finite = np.isfinite(x)
-    out = np.zeros(lags + 1)
+    out = np.zeros((*x.shape[:-2], lags + 1))
     if finite.all():
-        c = x - x.mean(axis=0)
-        for k in range(min(lags, len(c) - 1) + 1):  # loop over lags (≤ 3), not time
-            out[k] = np.einsum("ij,ij->", c[k:], c[: len(c) - k]) / ((len(c) - k) * c.shape[1])
+        c = x - x.mean(axis=-1, keepdims=True)
+        for k in range(min(lags, T - 1) + 1):  # loop over lags (≤ 3), not time
+            out[..., k] = np.einsum("...it,...it->...", c[..., k:], c[..., : T - k]) / ((T - k) * m)
         return out
-    counts = finite.sum(axis=0)
-    c = np.where(finite, x - np.where(finite, x, 0.0).sum(axis=0) / np.maximum(counts, 1), 0.0)
-    for k in range(min(lags, len(c) - 1) + 1):
-        pairs = (finite[k:] & finite[: len(c) - k]).sum()
-        out[k] = np.einsum("ij,ij->", c[k:], c[: len(c) - k]) / pairs if pairs else 0.0
+    counts = finite.sum(axis=-1, keepdims=True)
+    c = np.where(finite, x - np.where(finite, x, 0.0).sum(axis=-1, keepdims=True) / np.maximum(counts, 1), 0.0)
+    for k in range(min(lags, T - 1) + 1):
+        pairs = (finite[..., k:] & finite[..., : T - k]).sum(axis=(-2, -1))
+        products = np.einsum("...it,...it->...", c[..., k:], c[..., : T - k])
+        out[..., k] = np.where(pairs > 0, products / np.maximum(pairs, 1), 0.0)
     return out
 
 
-def _log_var(x: np.ndarray, scale: float) -> float:
-    return float(np.log(max(autocovariance(x, 0)[0], _VAR_FLOOR * scale**2) / scale**2))
+def _log_var(x: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    return np.log(np.maximum(autocovariance(x, 0)[..., 0], _VAR_FLOOR * scale**2) / scale**2)
 
 
 def _acf(x: np.ndarray, lags: int) -> np.ndarray:
     c = autocovariance(x, lags)
-    return c[1:] / c[0] if c[0] > 0 else np.zeros(lags)
+    positive = c[..., :1] > 0
+    return np.where(positive, c[..., 1:] / np.where(positive, c[..., :1], 1.0), 0.0)
 
 
-def box_scale(y: np.ndarray) -> float:
-    """Median sqrt(w·h) of the measured boxes (px); 1.0 when no box has a positive area."""
-    area = y[:, 2] * y[:, 3]
+def _time_last(y: np.ndarray) -> np.ndarray:
+    """Boxes (..., T, m) as contiguous series (..., m, T): every statistic here reduces over time."""
+    return np.ascontiguousarray(np.swapaxes(y, -1, -2))
+
+
+def box_scale(y: np.ndarray) -> float | np.ndarray:
+    """Median sqrt(w·h) of the measured boxes (px) of ``y`` (T, 4) → float, or (B, T, 4) → (B,); 1.0 when
+    no box has a positive area."""
+    return _scale(y[..., 2] * y[..., 3])
+
+
+def _scale(area: np.ndarray) -> float | np.ndarray:
     ok = np.isfinite(area) & (area > 0)
-    return float(np.sqrt(np.median(area[ok]))) if ok.any() else 1.0
+    if ok.all():
+        n = area.shape[-1]  # the median by one partial sort (np.median's result, without its overhead)
+        middle = np.partition(area, [(n - 1) // 2, n // 2], axis=-1)
+        scale = np.sqrt(0.5 * (middle[..., (n - 1) // 2] + middle[..., n // 2]))
+    else:
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows: handled below
+            scale = np.sqrt(np.nanmedian(np.where(ok, area, np.nan), axis=-1))
+        scale = np.where(ok.any(axis=-1), scale, 1.0)
+    return float(scale) if scale.ndim == 0 else scale
 
 
-def estimate_sigmas(y: np.ndarray, tau: float) -> tuple[float, float]:
-    """Moment estimates (σ̂_v, σ̂_w) from strided second differences of the positions (cx, cy).
+def estimate_sigmas(y: np.ndarray, tau: float | np.ndarray) -> tuple[float, float] | tuple[np.ndarray, np.ndarray]:
+    """Moment estimates (σ̂_v, σ̂_w) from strided second differences of the positions (cx, cy) of ``y``
+    (T, m) → floats, or (B, T, m) with ``tau`` scalar or (B,) → arrays (B,).
 
     For the white-acceleration CV model with white measurement noise, Δ²y_n = y_n − 2y_{n−1} + y_{n−2} has
     variance c0 = τ⁴σ_w²/2 + 6σ_v² and lag-1 autocovariance c1 = τ⁴σ_w²/4 − 4σ_v², hence
@@ -87,43 +112,63 @@ def estimate_sigmas(y: np.ndarray, tau: float) -> tuple[float, float]:
     k = 2, 4, …, 32 shorter than T/8. Coloured noise biases both (that is the point of tuning beyond the
     rule). Each variance is floored at 1e-12·scale² so the result is positive.
     """
-    scale = box_scale(y) if y.shape[1] == 4 else 1.0
-    pos = y[:, :2]
-    c0, c1 = autocovariance(np.diff(pos, n=2, axis=0), 1)
-    floor = _VAR_FLOOR * scale**2
-    var_v = max((c0 - 2.0 * c1) / 14.0, floor)
-    num = den = 0.0
+    sigma_v, sigma_w = _estimate_sigmas(_time_last(y), tau)
+    return (float(sigma_v), float(sigma_w)) if y.ndim == 2 else (sigma_v, sigma_w)
+
+
+def _estimate_sigmas(y: np.ndarray, tau: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`estimate_sigmas` of series ``y`` (..., m, T) (time last)."""
+    T = y.shape[-1]
+    scale = _scale(y[..., 2, :] * y[..., 3, :]) if y.shape[-2] == 4 else np.ones(y.shape[:-2])
+    tau = np.asarray(tau, dtype=float)
+    pos = y[..., :2, :]
+    c = autocovariance(np.diff(pos, n=2, axis=-1), 1)
+    c0, c1 = c[..., 0], c[..., 1]
+    floor = _VAR_FLOOR * np.asarray(scale) ** 2
+    var_v = np.maximum((c0 - 2.0 * c1) / 14.0, floor)
+    num = den = np.zeros_like(var_v)
     for k in (2, 4, 8, 16, 32):  # strides, not time
-        if 8 * k >= len(pos):
+        if 8 * k >= T:
             break
-        v_k = autocovariance(pos[2 * k:] - 2.0 * pos[k:-k] + pos[: -2 * k], 0)[0]
+        v_k = autocovariance(pos[..., 2 * k:] - 2.0 * pos[..., k:-k] + pos[..., : -2 * k], 0)[..., 0]
         g_k = (2.0 / 3.0) * k**3 * tau**4
-        if v_k > 0:
-            num += (v_k - 6.0 * var_v) * g_k / v_k**2
-            den += g_k**2 / v_k**2
-    var_w = max(num / den if den > 0 else 2.0 * (c0 - 6.0 * var_v) / tau**4, floor / tau**4)
-    return float(np.sqrt(var_v)), float(np.sqrt(var_w))
+        used = v_k > 0
+        v_safe = np.where(used, v_k, 1.0)
+        num = num + np.where(used, (v_k - 6.0 * var_v) * g_k / v_safe**2, 0.0)
+        den = den + np.where(used, g_k**2 / v_safe**2, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(den > 0, num / np.where(den > 0, den, 1.0), 2.0 * (c0 - 6.0 * var_v) / tau**4)
+    var_w = np.maximum(slope, floor / tau**4)
+    return np.sqrt(var_v), np.sqrt(var_w)
 
 
-def measurement_features(y: np.ndarray, tau: float, nominal_sigma_v: float, nominal_sigma_w: float,
-                         rule_positions: np.ndarray) -> np.ndarray:
-    """The observation vector (len(FEATURE_NAMES),) float32 of one track.
+def measurement_features(y: np.ndarray, tau: float | np.ndarray, nominal_sigma_v: float | np.ndarray,
+                         nominal_sigma_w: float | np.ndarray, rule_positions: np.ndarray) -> np.ndarray:
+    """The observation vector (len(FEATURE_NAMES),) float32 of one track, or (B, len(FEATURE_NAMES)) of B
+    tracks of equal length at once.
 
-    ``y``: measured boxes (T, 4) cx, cy, w, h (NaN = missing); ``rule_positions``: the fixed-rule filter's
-    position estimates (T, 4) on the same measurements (the pilot filter)."""
-    scale = box_scale(y)
-    pos, size = y[:, :2], y[:, 2:]
-    d1p, d2p = np.diff(pos, axis=0), np.diff(pos, n=2, axis=0)
-    sv, sw = estimate_sigmas(y, tau)
-    resid = y - rule_positions
-    feats = [
+    ``y``: measured boxes (T, 4) or (B, T, 4) cx, cy, w, h (NaN = missing); ``rule_positions``: the
+    fixed-rule filter's position estimates, same shape, on the same measurements (the pilot filter);
+    ``tau`` and the nominal σ: scalars or (B,)."""
+    batched = y.ndim == 3
+    Y = _time_last(y if batched else y[None])  # (B, 4, T)
+    resid = Y - _time_last(rule_positions if batched else rule_positions[None])
+    B, _, T = Y.shape
+    tau = np.broadcast_to(np.asarray(tau, dtype=float), (B,))
+    scale = np.broadcast_to(_scale(Y[:, 2] * Y[:, 3]), (B,))
+    pos, size = Y[:, :2], Y[:, 2:]
+    d1p, d2p = np.diff(pos, axis=-1), np.diff(pos, n=2, axis=-1)
+    sv, sw = _estimate_sigmas(Y, tau)
+    columns = [
         np.log(scale), np.log(tau),
         _log_var(d1p, scale), _log_var(d2p, scale),
-        _log_var(np.diff(size, axis=0), scale), _log_var(np.diff(size, n=2, axis=0), scale),
-        *_acf(d1p, 3), *_acf(d2p, 3),
-        np.log(n_opt(nominal_sigma_v, nominal_sigma_w, tau)), np.log(n_opt(sv, sw, tau)),
+        _log_var(np.diff(size, axis=-1), scale), _log_var(np.diff(size, n=2, axis=-1), scale),
+        *_acf(d1p, 3).T, *_acf(d2p, 3).T,
+        np.log(n_opt(np.broadcast_to(nominal_sigma_v, (B,)), np.broadcast_to(nominal_sigma_w, (B,)), tau)),
+        np.log(n_opt(sv, sw, tau)),
         np.log(sv / scale), np.log(sw * tau**2 / scale),
-        _log_var(resid, scale), _acf(resid, 1)[0],
-        float(np.mean(~np.isfinite(y).all(axis=1))), np.log(len(y)),
+        _log_var(resid, scale), _acf(resid, 1)[:, 0],
+        np.mean(~np.isfinite(Y).all(axis=1), axis=-1), np.full(B, np.log(T)),
     ]
-    return np.asarray(feats, dtype=np.float32)
+    features = np.stack(columns, axis=-1).astype(np.float32)
+    return features if batched else features[0]

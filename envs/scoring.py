@@ -7,9 +7,9 @@ from functools import lru_cache
 import numpy as np
 
 import filters
+from filters.fir_core import FIRFilter
 from envs import metrics
 from envs.actions import ACCEPTS
-from envs.boxes import cxcywh_to_xywh
 
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
 
@@ -20,18 +20,47 @@ def box_model(tau: float) -> filters.StateSpaceModel:
     return filters.constant_velocity(tau, ndim=4)
 
 
+def _in_frames(backend: str, tau: np.ndarray, params: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The frame intervals and parameters to run ``backend`` with: FIR back ends are exact in frame units
+    (σ_w → σ_w τ², :meth:`filters.fir_core.FIRFilter.params_in_frames`), so they run at τ = 1 whatever
+    the tracks' τ (one cached model, one batched call); the Kalman family keeps τ."""
+    cls = filters.filter_class(backend)
+    used = {k: np.asarray(params[k]) for k in ACCEPTS[backend]}
+    if issubclass(cls, FIRFilter):
+        return np.ones_like(tau), cls.params_in_frames(used, tau)
+    return tau, used
+
+
 def run_positions(backend: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray]) -> np.ndarray:
     """Filter the measured boxes ``y`` (T, 4) once per candidate: ``params`` maps names to arrays (A,);
     only the parameters ``backend`` accepts are passed. Returns position estimates (A, T, 4) cx, cy, w, h."""
     n = len(next(iter(params.values())))
-    used = {k: params[k] for k in ACCEPTS[backend]}
-    flt = filters.make(backend, box_model(tau), **used)
-    states = flt.run(np.broadcast_to(y, (n, *y.shape)))
-    return states[..., :4]
+    tau_run, used = _in_frames(backend, np.float64(tau), params)
+    flt = filters.make(backend, box_model(float(tau_run)), **used)
+    return flt.positions(np.broadcast_to(y, (n, *y.shape)))
+
+
+def run_tracks(backend: str, ys: list[np.ndarray], taus: list[float], params: dict[str, np.ndarray]) -> list[np.ndarray]:
+    """Filter B tracks, each with its own parameter set: ``ys`` B arrays (T_b, 4), ``taus`` their frame
+    intervals, ``params`` arrays (B,). Returns the position estimates, B arrays (T_b, 4).
+
+    Tracks of equal length and frame interval run in one batched call (for FIR back ends, which run in
+    frame units, the interval does not matter). Each track's estimate equals :func:`run_positions` on it."""
+    taus, used = _in_frames(backend, np.asarray(taus, dtype=float), params)
+    lengths = np.array([len(y) for y in ys])
+    out: list[np.ndarray] = [np.empty(0)] * len(ys)
+    for T, tau in sorted(set(zip(lengths.tolist(), taus.tolist()))):
+        rows = np.flatnonzero((lengths == T) & (taus == tau))
+        flt = filters.make(backend, box_model(tau), **{k: v[rows] for k, v in used.items()})
+        est = flt.positions(np.stack([ys[r] for r in rows]))
+        for i, r in enumerate(rows):
+            out[r] = est[i]
+    return out
 
 
 def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
-    """Scores of estimates (A, T, 4) against the truth (T, 4), both cx, cy, w, h; each value (A,).
+    """Scores of estimates (A, T, 4) against the truth — (T, 4) shared by all rows (candidates on one
+    episode) or (A, T, 4) (one episode per row) — all cx, cy, w, h; each value (A,).
 
     ``rmse``: sqrt(mean over frames of the squared Euclidean error of (cx, cy, w, h)) in px
     (:func:`envs.metrics.rmse_total`); ``iou_mean``; ``success_auc``, ``precision20`` and
@@ -41,31 +70,51 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
     truth exists counts as a failure (IoU 0, infinite centre error) and is not a detection, and is left
     out of the RMSE (filters have no estimate before a track's first finite measurement — the same frames
     for every candidate, so RMSEs stay paired)."""
-    valid = np.isfinite(truth).all(axis=1)
-    est_v, truth_v = est[:, valid], truth[valid]
-    detected = np.isfinite(est_v).all(axis=-1)
-    # before a track's first finite measurement no filter has an estimate (the same frames for every
-    # candidate and for the rule): those frames are left out of the RMSE and count as IoU failures
-    with_estimate = detected.all(axis=0)
-    rmse = metrics.rmse_total(est_v[:, with_estimate], truth_v[with_estimate])
-    pred_xywh, gt_xywh = cxcywh_to_xywh(est_v), cxcywh_to_xywh(truth_v)
-    overlap = np.where(detected, metrics.iou(pred_xywh, gt_xywh), 0.0)  # (A, n)
-    centre = np.where(detected, metrics.center_error(pred_xywh, gt_xywh), np.inf)
-    n = max(int(valid.sum()), 1)
+    cx, cy, w, h = est[..., 0], est[..., 1], est[..., 2], est[..., 3]  # each (A, T)
+    gx, gy, gw, gh = truth[..., 0], truth[..., 1], truth[..., 2], truth[..., 3]  # each (T,) or (A, T)
+    valid = np.isfinite(gx) & np.isfinite(gy) & np.isfinite(gw) & np.isfinite(gh)
+    scored = valid & np.isfinite(cx) & np.isfinite(cy) & np.isfinite(w) & np.isfinite(h)  # (A, T)
+    everywhere = bool(scored.all())
+    n = np.maximum(valid.sum(axis=-1), 1)  # frames with ground truth
+    squared = (cx - gx) ** 2 + (cy - gy) ** 2 + (w - gw) ** 2 + (h - gh) ** 2  # (A, T), px²
+    if everywhere:
+        rmse = np.sqrt(squared.sum(axis=1) / squared.shape[1])
+    else:
+        n_scored = scored.sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rmse = np.where(n_scored > 0, np.sqrt(np.where(scored, squared, 0.0).sum(axis=1) / n_scored), np.nan)
+    # IoU and centre error as envs.metrics computes them on xywh boxes (x = cx − w/2, widths clipped at 0)
+    x, y = cx - 0.5 * w, cy - 0.5 * h
+    gx0, gy0 = gx - 0.5 * gw, gy - 0.5 * gh
+    wc, hc, gwc, ghc = np.maximum(w, 0.0), np.maximum(h, 0.0), np.maximum(gw, 0.0), np.maximum(gh, 0.0)
+    iw = np.maximum(np.minimum(x + wc, gx0 + gwc) - np.maximum(x, gx0), 0.0)
+    ih = np.maximum(np.minimum(y + hc, gy0 + ghc) - np.maximum(y, gy0), 0.0)
+    inter = iw * ih
+    union = wc * hc + gwc * ghc - inter
+    overlap = np.zeros_like(inter)
+    np.divide(inter, union, out=overlap, where=union > 0)  # (A, T)
+    dx, dy = (x + 0.5 * w) - (gx0 + 0.5 * gw), (y + 0.5 * h) - (gy0 + 0.5 * gh)
+    within = dx * dx + dy * dy <= metrics.PRECISION_AT**2  # centre error <= 20 px
+    if not everywhere:  # no truth: not counted; a missing estimate: IoU 0, never within the centre threshold
+        overlap = np.where(scored, overlap, 0.0)
+        within &= scored
     # per frame, the number of the 21 IoU thresholds below (success: IoU > t, strict as the OTB toolkit) and
     # at or below (seed 001 true positive: IoU >= t) the frame's IoU; averaging these counts over frames and
     # thresholds is the mean over thresholds of the per-threshold rates
-    below = np.searchsorted(metrics.SUCCESS_THRESHOLDS, overlap, side="left")
-    at_or_below = np.where(detected, np.searchsorted(metrics.SUCCESS_THRESHOLDS, overlap, side="right"), 0)
-    n_thresholds = len(metrics.SUCCESS_THRESHOLDS)
-    n_detected = detected.sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        iou_precision = np.where(n_detected > 0, at_or_below.sum(axis=1) / (n_thresholds * np.maximum(n_detected, 1)), np.nan)
+    thresholds = metrics.SUCCESS_THRESHOLDS
+    below = np.searchsorted(thresholds, overlap, side="left")
+    at_or_below = below + (thresholds[np.minimum(below, len(thresholds) - 1)] == overlap)
+    if not everywhere:
+        at_or_below = np.where(scored, at_or_below, 0)
+    n_thresholds = len(thresholds)
+    n_detected = scored.sum(axis=1)
+    iou_precision = np.full(len(est), np.nan)  # NaN: no detection at all
+    np.divide(at_or_below.sum(axis=1), n_thresholds * n_detected, out=iou_precision, where=n_detected > 0)
     return {
         "rmse": rmse,
         "iou_mean": overlap.sum(axis=1) / n,
         "success_auc": below.sum(axis=1) / (n_thresholds * n),
-        "precision20": (centre <= metrics.PRECISION_AT).sum(axis=1) / n,
+        "precision20": within.sum(axis=1) / n,
         "iou_precision": iou_precision,
     }
 

@@ -108,15 +108,28 @@ def constant_velocity_paths(
     ``p0``, ``v0`` are (B, C) and ``sigma_w`` (C,); returns two (B, T, C) arrays with frame 0 = (p0, v0)."""
     p0, v0 = np.asarray(p0, dtype=float), np.asarray(v0, dtype=float)
     w = rng.standard_normal((p0.shape[0], n_frames - 1, p0.shape[1])) * np.asarray(sigma_w, dtype=float)
-    v = np.concatenate([v0[:, None], v0[:, None] + tau * np.cumsum(w, axis=1)], axis=1)  # v_n = v_{n−1} + τ w_n (1)
-    steps = (tau + delta) * v[:, :-1] + 0.5 * tau**2 * w  # p_n − p_{n−1} = (τ + δ) v_{n−1} + τ²/2 w_n (1)
-    p = np.concatenate([p0[:, None], p0[:, None] + np.cumsum(steps, axis=1)], axis=1)
-    return p, v
+    return _integrate(p0, v0, w, tau, delta)
+
+
+def _integrate(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray,
+               delta: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(1) by cumsums from the scaled acceleration noise ``w`` (B, T − 1, C); ``tau``, ``delta`` scalars or
+    (B, 1, 1) arrays (one per track). Every track's arithmetic is the same whatever the batch. Computed with time
+    as the last (contiguous) axis, where cumulative sums are fast; returns (B, T, C) arrays."""
+    w = np.ascontiguousarray(w.transpose(0, 2, 1))  # (B, C, T − 1)
+    v = np.concatenate([v0[:, :, None], v0[:, :, None] + tau * np.cumsum(w, axis=2)], axis=2)  # v_n = v_{n−1} + τ w_n (1)
+    steps = (tau + delta) * v[:, :, :-1] + 0.5 * (tau * tau) * w  # p_n − p_{n−1} = (τ + δ) v_{n−1} + τ²/2 w_n (1)
+    p = np.concatenate([p0[:, :, None], p0[:, :, None] + np.cumsum(steps, axis=2)], axis=2)
+    return p.transpose(0, 2, 1), v.transpose(0, 2, 1)
 
 
 def gauss_markov(psi: float, sigma_xi: np.ndarray, shape: tuple[int, int, int], rng: np.random.Generator) -> np.ndarray:
     """Stationary CMN (2) shaped (B, T, C) with per-coordinate ξ std ``sigma_xi`` (C,) along axis 1."""
-    e = rng.standard_normal(shape) * np.asarray(sigma_xi, dtype=float)
+    return _colour(rng.standard_normal(shape) * np.asarray(sigma_xi, dtype=float), psi)
+
+
+def _colour(e: np.ndarray, psi: float) -> np.ndarray:
+    """(2) in place on the scaled white noise ``e`` (B, T, C) → the CMN (B, T, C)."""
     e[:, 0] /= math.sqrt(1.0 - psi**2)  # v_0 ~ N(0, σ_ξ²/(1 − ψ²)), the stationary law
     if psi == 0.0:
         return e
@@ -132,30 +145,60 @@ def simulate(scenario: Scenario, rng: np.random.Generator, n_tracks: int | None 
     """
     if n_tracks is not None and (not isinstance(n_tracks, (int, np.integer)) or n_tracks < 1):
         raise ValueError(f"n_tracks={n_tracks!r} is out of range: allowed None or an integer >= 1")
-    s, B, T, M = scenario, 1 if n_tracks is None else int(n_tracks), scenario.n_frames, scenario.M
-    x0 = s.initial_state
+    s, B, T = scenario, 1 if n_tracks is None else int(n_tracks), scenario.n_frames
+    p0, v0, sigma, sigma_xi, sizes0 = _start(s)
+    w = rng.standard_normal((B, T - 1, len(sigma))) * sigma
+    e = rng.standard_normal((B, T, s.M)) * sigma_xi
+    truth, state, y = _assemble(np.tile(p0, (B, 1)), np.tile(v0, (B, 1)), w, s.tau, s.delta, _colour(e, s.psi), sizes0)
+    if n_tracks is None:
+        return Track(truth=truth[0], truth_state=state[0], y=y[0], tau=s.tau)
+    return Track(truth=truth, truth_state=state, y=y, tau=s.tau)
+
+
+def simulate_each(scenarios: list[Scenario], rngs: list[np.random.Generator]) -> list[Track]:
+    """One track per (scenario, generator) pair, each equal to ``simulate(scenario, rng)``, in one
+    vectorised pass (the scenarios must share ``n_frames`` and ``ndim``; the random draws stay per generator)."""
+    s0 = scenarios[0]
+    if len(rngs) != len(scenarios) or any(s.n_frames != s0.n_frames or s.ndim != s0.ndim for s in scenarios):
+        raise ValueError("simulate_each needs one generator per scenario and scenarios of equal n_frames and ndim")
+    starts = [_start(s) for s in scenarios]
+    T, C = s0.n_frames, len(starts[0][2])
+    w, e = np.empty((len(scenarios), T - 1, C)), np.empty((len(scenarios), T, s0.M))
+    for i, (rng, (_, _, sigma, sigma_xi, _)) in enumerate(zip(rngs, starts)):  # in simulate's order: w, then ξ
+        w[i] = rng.standard_normal((T - 1, C)) * sigma
+        e[i] = rng.standard_normal((T, s0.M)) * sigma_xi
+    cmn = np.concatenate([_colour(e[i:i + 1], s.psi) for i, s in enumerate(scenarios)])
+    column = lambda name: np.array([getattr(s, name) for s in scenarios])[:, None, None]  # noqa: E731
+    p0, v0, sizes0 = (np.stack([start[k] for start in starts]) for k in (0, 1, 4))
+    truth, state, y = _assemble(p0, v0, w, column("tau"), column("delta"), cmn, sizes0[:, None])
+    return [Track(truth=truth[i], truth_state=state[i], y=y[i], tau=s.tau) for i, s in enumerate(scenarios)]
+
+
+def _start(s: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Initial positions and velocities of the simulated coordinates (box sizes in log space), their
+    acceleration noise std, the ξ std of each measured coordinate and the initial box size (w_0, h_0)
+    (empty unless ndim = 4)."""
+    x0, M = s.initial_state, s.M
     if M == 4:
         sizes0 = x0[2:4]
         p0 = np.concatenate([x0[:2], [0.0, 0.0]])  # log sizes ℓ start at 0
         v0 = np.concatenate([x0[4:6], x0[6:8] / sizes0])  # ℓ̇_0 = ẇ_0 / w_0
         sigma = np.array([s.sigma_w, s.sigma_w, s.sigma_w_log_size, s.sigma_w_log_size])
-    else:
-        p0, v0, sigma = x0[:M], x0[M:], np.full(M, s.sigma_w)
-    p, v = constant_velocity_paths(np.tile(p0, (B, 1)), np.tile(v0, (B, 1)), sigma, s.tau, s.delta, T, rng)
-    if M == 4:
+        return p0, v0, sigma, s.sigma_xi * np.array([1.0, 1.0, s.size_noise_ratio, s.size_noise_ratio]), sizes0
+    return x0[:M], x0[M:], np.full(M, s.sigma_w), np.full(M, s.sigma_xi), np.empty(0)
+
+
+def _assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray, delta: float | np.ndarray,
+              cmn: np.ndarray, sizes0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Truth (B, T, M), true state (B, T, K) and measurements (B, T, M) from the drawn noise (``sizes0``: the
+    initial (w_0, h_0) of a box track, (2,) or (B, 1, 2); empty for ndim 1 and 2)."""
+    p, v = _integrate(p0, v0, w, tau, delta)
+    if sizes0.size:
         sizes = sizes0 * np.exp(p[..., 2:])  # w = w_0 exp(ℓ)
         p = np.concatenate([p[..., :2], sizes], axis=-1)
         v = np.concatenate([v[..., :2], sizes * v[..., 2:]], axis=-1)  # ẇ = w ℓ̇
-        sigma_xi = s.sigma_xi * np.array([1.0, 1.0, s.size_noise_ratio, s.size_noise_ratio])
-    else:
-        sigma_xi = np.full(M, s.sigma_xi)
-    y = p + gauss_markov(s.psi, sigma_xi, (B, T, M), rng)  # (3)
-    state = np.concatenate([p, v], axis=-1)
-    if n_tracks is None:
-        return Track(truth=p[0], truth_state=state[0], y=y[0], tau=s.tau)
-    return Track(truth=p, truth_state=state, y=y, tau=s.tau)
-
-
+    y = p + cmn  # (3)
+    return p, np.concatenate([p, v], axis=-1), y
 def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
     return float(rng.uniform(bounds[0], bounds[1])) if bounds[1] > bounds[0] else float(bounds[0])
 

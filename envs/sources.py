@@ -41,7 +41,22 @@ def _nominal(cfg: EnvConfig, sigma_v: float, sigma_w: float, tau: float) -> Nomi
     return Nominal(sigma_w=sigma_w, sigma_v=sigma_v, psi=cfg.nominal_psi, horizon=int(horizon))
 
 
-class SimSource:
+class Source:
+    """What the environments draw episodes from: ``draw(sequence, noise_seed)`` (subclasses) and
+    ``draw_many(noise_seeds)``, the unpinned episodes of those seeds; ``block`` is how many of them
+    FilterTune-v0 draws and prepares at once."""
+
+    block = 1
+
+    def draw(self, sequence: str | None, noise_seed: int) -> Episode:
+        raise NotImplementedError
+
+    def draw_many(self, noise_seeds: list[int]) -> list[Episode]:
+        """``[draw(None, s) for s in noise_seeds]`` (sources with a batched form override it)."""
+        return [self.draw(None, s) for s in noise_seeds]
+
+
+class SimSource(Source):
     """Simulated CV boxes with Gauss–Markov CMN (:mod:`envs.simulate`); the scenario is drawn per episode
     from the config's ranges. Nominal σ are the geometric centres of the σ ranges."""
 
@@ -53,24 +68,36 @@ class SimSource:
             psi=cfg.psi_range, sigma_w=cfg.sigma_w_range, sigma_xi=cfg.sigma_xi_range, tau=cfg.tau_range,
             n_frames=(cfg.track_length, cfg.track_length), size=cfg.box_size_range, ndim=4,
         )
+        self.block = max(1, min(64, 2**15 // cfg.track_length))  # episodes FilterTune-v0 prepares at once
         self.sigma_v_nominal = float(np.sqrt(np.prod(cfg.sigma_xi_range)))
         self.sigma_w_nominal = float(np.sqrt(np.prod(cfg.sigma_w_range)))
 
     def draw(self, sequence: str | None, noise_seed: int) -> Episode:
-        from envs.simulate import simulate
-
         if sequence is not None:
             raise ValueError(f"options['sequence']={sequence!r}: the 'sim' source has no sequences; pin episodes with noise_seed")
-        rng = np.random.default_rng(noise_seed)
-        scenario = self.ranges.sample(rng)
-        track = simulate(scenario, rng)
-        meta = {"sequence": None, "noise_seed": noise_seed, "psi": scenario.psi, "sigma_w": scenario.sigma_w,
-                "sigma_xi": scenario.sigma_xi, "tau": scenario.tau}
-        nominal = _nominal(self.cfg, self.sigma_v_nominal, self.sigma_w_nominal, track.tau)
-        return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta)
+        return self.draw_many([noise_seed])[0]
+
+    def draw_many(self, noise_seeds: list[int]) -> list[Episode]:
+        """The episodes of ``noise_seeds``, simulated in one vectorised pass (:func:`envs.simulate.simulate_each`:
+        each equal to drawing it alone)."""
+        from envs.simulate import simulate_each
+
+        rngs = [np.random.default_rng(seed) for seed in noise_seeds]
+        scenarios = [self.ranges.sample(rng) for rng in rngs]
+        tracks = simulate_each(scenarios, rngs)
+        horizons = rule_horizon(self.sigma_v_nominal, self.sigma_w_nominal, np.array([t.tau for t in tracks]), K_AXIS,
+                                max_horizon=self.cfg.horizon_max)
+        episodes = []
+        for seed, scenario, track, horizon in zip(noise_seeds, scenarios, tracks, horizons.tolist()):
+            meta = {"sequence": None, "noise_seed": seed, "psi": scenario.psi, "sigma_w": scenario.sigma_w,
+                    "sigma_xi": scenario.sigma_xi, "tau": scenario.tau}
+            nominal = Nominal(sigma_w=self.sigma_w_nominal, sigma_v=self.sigma_v_nominal, psi=self.cfg.nominal_psi,
+                              horizon=horizon)
+            episodes.append(Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta))
+        return episodes
 
 
-class OTBSource:
+class OTBSource(Source):
     """OTB-100 sequences of one split: ground truth + synthetic CMN ("otb") or a tracker's output
     ("otb_tracker"). Nominal σ are the config's relative values times the measured box scale."""
 
@@ -115,8 +142,8 @@ class OTBSource:
         return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta)
 
 
-def make_source(cfg: EnvConfig) -> Any:
-    """The episode source of ``cfg.source``: each has ``draw(sequence, noise_seed) -> Episode``."""
+def make_source(cfg: EnvConfig) -> Source:
+    """The episode source of ``cfg.source`` (a :class:`Source`)."""
     if cfg.source == "sim":
         return SimSource(cfg)
     if cfg.source == "video":

@@ -35,16 +35,26 @@ class TrackEnv(gym.Env):
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(FEATURE_NAMES) + n_extra_obs,), np.float32)
         self.episode: Episode | None = None
 
-    def _draw(self, seed: int | None, options: dict[str, Any] | None) -> Episode:
-        """Seed the env, then draw the episode ``options`` pins (or a fresh one from ``np_random``)."""
+    def _seed_and_options(self, seed: int | None, options: dict[str, Any] | None) -> dict[str, Any]:
+        """Seed the env (``seed`` given: reseed ``np_random``) and return the validated reset options."""
         super().reset(seed=seed)
         options = dict(options or {})
         unknown = sorted(set(options) - set(RESET_OPTIONS))
         if unknown:
             raise ValueError(f"unknown reset option(s) {unknown}; allowed: {RESET_OPTIONS}")
+        return options
+
+    def _noise_seeds(self, count: int) -> list[int]:
+        """The next ``count`` episode noise seeds from ``np_random`` (the same sequence whether drawn one at
+        a time or in blocks)."""
+        return self.np_random.integers(2**62, size=count).tolist()
+
+    def _draw(self, seed: int | None, options: dict[str, Any] | None) -> Episode:
+        """Seed the env, then draw the episode ``options`` pins (or a fresh one from ``np_random``)."""
+        options = self._seed_and_options(seed, options)
         noise_seed = options.get("noise_seed")
         if noise_seed is None:
-            noise_seed = int(self.np_random.integers(2**62))
+            noise_seed = self._noise_seeds(1)[0]
         return self.source.draw(options.get("sequence"), int(noise_seed))
 
     @staticmethod

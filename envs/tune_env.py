@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections import deque
 from typing import Any
 
 import numpy as np
 
 from envs.features import measurement_features
-from envs.scoring import SCORE_KEYS, reward_from, run_positions, score_estimates
+from envs.scoring import SCORE_KEYS, reward_from, run_positions, run_tracks, score_estimates
+from envs.sources import Episode
 from envs.track_env import TrackEnv
 
 
@@ -53,6 +55,13 @@ class FilterTuneEnv(TrackEnv):
     CMN level and ψ). ``reset(options={"sequence": name, "noise_seed": s})`` pins an episode (``sequence``
     only for OTB sources), so that different methods can be compared on identical data.
 
+    Every episode is a pure function of its noise seed (and sequence); without options the seed is the
+    next draw from ``np_random``. For speed the ``sim`` source draws and prepares (simulation, rule run, rule
+    scores, observation) a block of up to 64 unpinned episodes at once — batched over the block — and hands
+    them out one per reset: the episodes, their order and every value are the same as one at a time (the
+    tests check bit-identity with the pinned episode), but ``np_random`` advances a block at a time.
+    ``reset(seed=...)`` discards the prepared block; a pinned episode is prepared alone and leaves it.
+
     ## Episode End
     After one step: ``terminated=True``, ``truncated=False``. ``info`` then holds, for the action and for
     the rule on the same episode: ``rmse``/``rule_rmse``, ``iou_mean``, ``success_auc``,
@@ -81,24 +90,48 @@ class FilterTuneEnv(TrackEnv):
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         super().__init__(0, render_mode=render_mode, **kwargs)
         self._rule: dict[str, Any] = {}
+        self._ready: deque[tuple[Episode, dict[str, Any], np.ndarray]] = deque()  # prepared, not yet used
         self._estimate: np.ndarray | None = None
         self._done = True
 
     # -- episode ---------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
-        self.episode = self._draw(seed, options)
-        rule_params = self.rule_params(self.episode)
-        rule_est = run_positions(self.config.backend, self.episode.y, self.episode.tau, rule_params)
-        rule_scores = {k: float(v[0]) for k, v in score_estimates(rule_est, self.episode.truth).items()}
-        self._rule = {"params": rule_params, "estimate": rule_est[0], "scores": rule_scores}
+        options = self._seed_and_options(seed, options)
+        if seed is not None:
+            self._ready.clear()  # prepared with the old seed
+        if options:  # a pinned episode: prepared alone, the queue stays as it is
+            noise_seed = options.get("noise_seed")
+            if noise_seed is None:
+                noise_seed = self._noise_seeds(1)[0]
+            prepared = self._prepare([self.source.draw(options.get("sequence"), int(noise_seed))])[0]
+        else:
+            if not self._ready:
+                self._ready.extend(self._prepare(self.source.draw_many(self._noise_seeds(self.source.block))))
+            prepared = self._ready.popleft()
+        self.episode, self._rule, self._obs = prepared
         self._estimate = None
         self._done = False
-        self._obs = self._observe()
         return self._obs.copy(), {"track": dict(self.episode.meta)}
 
-    def _observe(self) -> np.ndarray:
-        ep = self.episode
-        return measurement_features(ep.y, ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, self._rule["estimate"])
+    def _prepare(self, episodes: list[Episode]) -> list[tuple[Episode, dict[str, Any], np.ndarray]]:
+        """Each episode with its fixed-rule run (parameters, estimate, scores) and its observation — batched
+        over episodes of equal length (the rule's filter runs, its scores and the features)."""
+        rule_params = [self.rule_params(ep) for ep in episodes]
+        stacked = {k: np.concatenate([p[k] for p in rule_params]) for k in rule_params[0]}
+        estimates = run_tracks(self.config.backend, [ep.y for ep in episodes], [ep.tau for ep in episodes], stacked)
+        out: list[tuple[Episode, dict[str, Any], np.ndarray]] = [None] * len(episodes)  # type: ignore[list-item]
+        lengths = np.array([len(ep.y) for ep in episodes])
+        for T in np.unique(lengths):
+            rows = np.flatnonzero(lengths == T)
+            est = np.stack([estimates[r] for r in rows])
+            scores = score_estimates(est, np.stack([episodes[r].truth for r in rows]))
+            nominal = [episodes[r].nominal for r in rows]
+            obs = measurement_features(np.stack([episodes[r].y for r in rows]), [episodes[r].tau for r in rows],
+                                       [n.sigma_v for n in nominal], [n.sigma_w for n in nominal], est)
+            for i, r in enumerate(rows):
+                rule = {"params": rule_params[r], "estimate": est[i], "scores": {k: float(v[i]) for k, v in scores.items()}}
+                out[r] = (episodes[r], rule, obs[i])
+        return out
 
     def score(self, actions: np.ndarray) -> dict[str, np.ndarray]:
         """Score actions (A, d) on the current episode in one vectorised filter run.

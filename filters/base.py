@@ -111,11 +111,12 @@ class Filter(ABC):
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
         """Check every parameter (ValueError naming it, its value and the allowed range)."""
 
-    def _run_axes(self, z: np.ndarray, params: dict[str, Any]) -> np.ndarray:
+    def _run_axes(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:
         """Filter channels ``z`` (C, T) of one coordinate each (channel c = track c // M, coordinate
         c % M); the ``PER_TRACK`` parameters arrive as arrays (C,), the others as validated.
 
-        Returns posterior two-state estimates (C, T, 2) = [position, velocity] at every frame."""
+        Returns posterior two-state estimates (C, T, 2) = [position, velocity] at every frame
+        (``positions_only``: the velocities may be left NaN where that saves work)."""
         return self._run_axes_from(z, params, None, None)[0]
 
     def _run_axes_from(self, z: np.ndarray, params: dict[str, Any], start: AxisCarry | None,
@@ -135,6 +136,18 @@ class Filter(ABC):
         axes = self._run_axes(z, params) if u_axes is None else self._run_axes_from(z, params, None, u_axes)[0]
         states = merge_axes(axes, n_tracks, self.model.M)
         return states if batched else states[0]
+
+    def positions(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """The position estimates only, (T, M) or (B, T, M): ``run(y, u)[..., :M]``, cheaper where a back end
+        can skip the velocities (the FIR family: half the work of its full-window convolution)."""
+        z, params, u_axes, n_tracks, batched = self._channels(y, u)
+        if u_axes is None:
+            axes = self._run_axes(z, params, positions_only=True)
+        else:
+            axes = self._run_axes_from(z, params, None, u_axes)[0]
+        M = self.model.M
+        out = axes[..., 0].reshape(n_tracks, M, -1).transpose(0, 2, 1)
+        return out if batched else out[0]
 
     def run_from(self, y: np.ndarray, carry: Carry | None = None,
                  u: np.ndarray | None = None) -> tuple[np.ndarray, Carry]:

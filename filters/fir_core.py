@@ -54,8 +54,11 @@ class GainCache:
         return gain
 
     def put(self, key: tuple, gain: np.ndarray) -> None:
+        """Store a read-only copy of ``gain`` under ``key`` (evicting the least recently used)."""
         if key in self._store or gain.nbytes > self.max_bytes:
             return
+        gain = np.array(gain)
+        gain.setflags(write=False)
         self._store[key] = gain
         self.nbytes += gain.nbytes
         while self.nbytes > self.max_bytes:
@@ -127,14 +130,14 @@ class FIRFilter(Filter):
         return valid.sum(axis=-1) >= self.model.axis().K
 
     # ------------------------------------------------------------------------------------------------
-    def _run_axes(self, z: np.ndarray, params: dict[str, Any]) -> np.ndarray:
+    def _run_axes(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:
         """Run in frame units: with the velocity measured per frame (v τ) the model at interval τ is exactly
         the model at τ = 1 with acceleration noise σ_w τ² (F(τ), B(τ) w → F(1), B(1) τ² w), so every gain is
         computed — and cached — once for all frame intervals; the velocity is scaled back by 1/τ."""
         tau = self.model.tau
         if tau == 1.0:
-            return self._run_frames(z, params)
-        X = self._in_frames._run_frames(z, self.params_in_frames(params, tau))
+            return self._run_frames(z, params, positions_only)
+        X = self._in_frames._run_frames(z, self.params_in_frames(params, tau), positions_only)
         X[..., 1] /= tau
         return X
 
@@ -146,27 +149,37 @@ class FIRFilter(Filter):
         twin.params = self.params_in_frames(self.params, self.model.tau)
         return twin
 
-    def params_in_frames(self, params: dict[str, Any], tau: float) -> dict[str, Any]:
-        """``params`` with every time-dependent quantity converted to frame units (σ_w → σ_w τ²); back ends
-        with further such parameters (OFIR's prior covariance) extend this."""
-        return {**params, "sigma_w": np.asarray(params["sigma_w"]) * tau**2}
+    @classmethod
+    def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
+        """``params`` with every time-dependent quantity converted to frame units (σ_w → σ_w τ²; ``tau`` a
+        scalar or per track (B,)); back ends with further such parameters (OFIR's prior covariance) extend
+        this."""
+        if "sigma_w" not in params:  # a partial set (the defaults are filled in later)
+            return dict(params)
+        return {**params, "sigma_w": np.asarray(params["sigma_w"]) * np.asarray(tau) ** 2}
 
-    def _run_frames(self, z: np.ndarray, params: dict[str, Any]) -> np.ndarray:
+    def _run_frames(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:
         C, T = z.shape
         valid = np.isfinite(z)
         group, gparams = self._groups(params)
         L_c = (gparams["horizon"] + self.EXTRA_SAMPLES)[group]  # (C,) raw window length of each channel
-        X = correlate(np.where(valid, z, 0.0), self._full_gains(gparams, T), group)  # as if every window were full
-        t = np.arange(T)
-        holes = np.zeros((C, T), bool)  # window at frame n holds a NaN
-        if not valid.all():
+        # as if every window were full; the start-up frames n < L_c − 1, where that is wrong, are overwritten below
+        W = self._full_gains(gparams, T)
+        clean = bool(valid.all())
+        X = correlate(z if clean else np.where(valid, z, 0.0), W[:, :1] if positions_only else W, group, wrap=True)
+        if positions_only:  # velocities of full windows left NaN (start-up and fallback frames still get theirs)
+            X = np.concatenate([X, np.full_like(X, np.nan)], axis=2)
+        if clean:  # no window holds a NaN
+            self._startup(X, z, valid, np.zeros((C, T), bool), group, gparams, L_c)
+        else:
+            t = np.arange(T)
             n_missing = np.concatenate([np.zeros((C, 1), np.int64), np.cumsum(~valid, axis=1)], axis=1)
             oldest = np.maximum(t[None, :] - L_c[:, None] + 1, 0)
-            holes = n_missing[:, 1:] > np.take_along_axis(n_missing, oldest, axis=1)
-        startup = t[None, :] < L_c[:, None] - 1
-        self._startup(X, z, valid, holes & startup, group, gparams, L_c)
-        cs, ns = np.nonzero(holes & ~startup)
-        self._masked(X, z, valid, cs, ns, L_c[cs], group, gparams)
+            holes = n_missing[:, 1:] > np.take_along_axis(n_missing, oldest, axis=1)  # window at n holds a NaN
+            startup = t[None, :] < L_c[:, None] - 1
+            self._startup(X, z, valid, holes & startup, group, gparams, L_c)
+            cs, ns = np.nonzero(holes & ~startup)
+            self._masked(X, z, valid, cs, ns, L_c[cs], group, gparams)
         cs, ns = np.nonzero(np.isnan(X[..., 0]))  # unobservable windows
         X[cs, ns] = _hold_last(z, valid, cs, ns)
         return X
@@ -175,7 +188,10 @@ class FIRFilter(Filter):
         """Channel → group index (C,) and the gain parameters of each group, arrays (G,)."""
         names = self.GAIN_PARAMS or self.PER_TRACK
         table = np.stack([np.asarray(params[k], dtype=float) for k in names], axis=1)
-        unique, group = np.unique(table, axis=0, return_inverse=True)
+        if (table == table[0]).all():  # one parameter set (a single track, or a shared tuning): no sort
+            unique, group = table[:1], np.zeros(len(table), np.int64)
+        else:
+            unique, group = np.unique(table, axis=0, return_inverse=True)
         gparams = {k: unique[:, j] for j, k in enumerate(names)}
         gparams["horizon"] = gparams["horizon"].astype(np.int64)
         return group.reshape(-1), gparams
@@ -186,10 +202,38 @@ class FIRFilter(Filter):
         L = gparams["horizon"] + self.EXTRA_SAMPLES
         L_max = int(min(L.max(), T))
         out = np.zeros((L.size, 2, L_max))
-        for L_val in np.unique(L[L <= T]):
-            rows = np.flatnonzero(L == L_val)
-            out[rows, :, L_max - L_val:] = self._lookup(np.ones((rows.size, L_val), bool), _take(gparams, rows))
+        rows = np.flatnonzero(L <= T)
+        base = self._cache_base()
+        names = sorted(gparams)
+        misses: dict[int, tuple] = {}
+        for r in rows.tolist():
+            key = base + (L[r].item(), tuple(gparams[k][r].item() for k in names))
+            gain = GAINS.get(key)
+            if gain is None:
+                misses[r] = key
+            else:
+                out[r, :, L_max - gain.shape[1]:] = gain
+        if misses:
+            computed = list(misses)
+            out[computed] = self.clean_gains(_take(gparams, np.asarray(computed)), L_max)
+            for r, key in misses.items():
+                GAINS.put(key, out[r, :, L_max - L[r]:])
         return out
+
+    def clean_gains(self, params: dict[str, np.ndarray], L_max: int) -> np.ndarray:
+        """Full-window gains (P, 2, L_max) of P parameter sets ``params`` (arrays (P,)), each right-aligned (zeros
+        before a window shorter than L_max). The default groups them by window length and calls
+        :meth:`window_gains`; back ends with a padded batch form override it."""
+        L = params["horizon"] + self.EXTRA_SAMPLES
+        out = np.zeros((L.size, 2, L_max))
+        for L_val in np.unique(L):
+            rows = np.flatnonzero(L == L_val)
+            out[rows, :, L_max - L_val:] = self.window_gains(np.ones((rows.size, L_val), bool), _take(params, rows))
+        return out
+
+    def _cache_base(self) -> tuple:
+        """The part of a gain-cache key fixed for this filter: back end, τ and the non-per-track parameters."""
+        return (type(self), self.model.tau, _freeze({k: v for k, v in self.params.items() if k not in self.PER_TRACK}))
 
     def _startup(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, holes: np.ndarray, group: np.ndarray,
                  gparams: dict[str, np.ndarray], L_c: np.ndarray) -> None:
@@ -242,7 +286,7 @@ class FIRFilter(Filter):
 
     def _lookup(self, masks: np.ndarray, gp: dict[str, np.ndarray]) -> np.ndarray:
         """Gains (U, 2, L) of windows ``masks`` (U, L) through the LRU cache; misses computed in one batch."""
-        base = (type(self), self.model.tau, _freeze({k: v for k, v in self.params.items() if k not in self.PER_TRACK}))
+        base = self._cache_base()
         names = sorted(gp)
         keys = [base + (m.tobytes(), tuple(gp[k][u].item() for k in names)) for u, m in enumerate(masks)]
         found = [GAINS.get(key) for key in keys]
@@ -250,22 +294,24 @@ class FIRFilter(Filter):
         if misses:
             fresh = self.window_gains(masks[misses], _take(gp, np.asarray(misses)))
             for u, g in zip(misses, fresh):
-                g = np.array(g)  # own copy, read-only in the cache
-                g.setflags(write=False)
                 GAINS.put(keys[u], g)
                 found[u] = g
         return np.stack(found)
 
 
-def correlate(y0: np.ndarray, W: np.ndarray, group: np.ndarray) -> np.ndarray:
+def correlate(y0: np.ndarray, W: np.ndarray, group: np.ndarray, wrap: bool = False) -> np.ndarray:
     """``X[c, n] = W[group[c]] @ y0[c, n−L+1 … n]`` for every frame (samples before frame 0 read as 0).
 
-    ``y0`` (C, T); ``W`` (G, 2, L) right-aligned kernels (oldest tap first). Returns (C, T, 2). FFT
+    ``y0`` (C, T); ``W`` (G, k, L) right-aligned kernels (oldest tap first; k = 2 for position and velocity,
+    1 for the position only). Returns (C, T, k). FFT
     convolution, O(T log T) per channel: measured 4–6× faster than sliding-window products (einsum on a
-    strided view) already at L = 4 (1024 channels × 1000 frames: 15 vs 63 ms CPU), so it is used for every L."""
+    strided view) already at L = 4 (1024 channels × 1000 frames: 15 vs 63 ms CPU), so it is used for every L.
+    ``wrap=True``: circular over max(T, L) points (about half the work for L ~ T) — exact only at frames
+    n >= L_g − 1 of a channel whose group's kernel has L_g non-zero taps (earlier frames read wrapped samples
+    from the end of the track; the FIR start-up overwrites them)."""
     T = y0.shape[1]
     L = W.shape[2]
-    n_fft = sfft.next_fast_len(T + L - 1, real=True)
+    n_fft = sfft.next_fast_len(max(T, L) if wrap else T + L - 1, real=True)
     spectrum = sfft.rfft(W[:, :, ::-1], n_fft, axis=-1)  # convolution taps, newest first
     out = sfft.irfft(sfft.rfft(y0, n_fft, axis=-1)[:, None, :] * spectrum[group], n_fft, axis=-1)
     return out[:, :, :T].transpose(0, 2, 1)
@@ -276,6 +322,8 @@ def _hold_last(z: np.ndarray, valid: np.ndarray, cs: np.ndarray, ns: np.ndarray)
     velocity 0 (both NaN before the channel's first valid measurement)."""
     if cs.size == 0:
         return np.empty((0, 2))
+    if valid.all():  # every frame measured: only windows too short to be observable (frame 0) come here
+        return np.stack([z[cs, ns], np.zeros(cs.size)], axis=-1)
     channels, rows = np.unique(cs, return_inverse=True)
     last = np.maximum.accumulate(np.where(valid[channels], np.arange(z.shape[1]), -1), axis=1)[rows, ns]
     seen = last >= 0

@@ -28,5 +28,5 @@ def rule_horizon(sigma_v: float | np.ndarray, sigma_w: float | np.ndarray, tau: 
                  max_horizon: int = 10_000) -> int | np.ndarray:
     """The rule's horizon as a usable integer: ``round(N_opt)`` clipped to [K, max_horizon]
     (clipping is part of this function's definition; the unclipped value is :func:`n_opt`)."""
-    n = np.clip(np.rint(n_opt(sigma_v, sigma_w, tau)), K, max_horizon).astype(np.int64)
+    n = np.minimum(np.maximum(np.rint(n_opt(sigma_v, sigma_w, tau)), K), max_horizon).astype(np.int64)
     return int(n) if n.ndim == 0 else n

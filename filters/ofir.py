@@ -101,10 +101,14 @@ class OFIR(KalmanWindowFIR):
         out["P0"] = check_prior(params["P0"])
         return out
 
-    def params_in_frames(self, params: dict[str, Any], tau: float) -> dict[str, Any]:
-        """As the base class, and the prior covariance of [p, v] becomes that of [p, v τ]."""
+    @classmethod
+    def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
+        """As the base class, and the prior covariance of [p, v] becomes that of [p, v τ] (one P0 for all
+        tracks, so ``tau`` must then be a scalar)."""
         out = super().params_in_frames(params, tau)
-        if params["P0"] is not None:
+        if params.get("P0") is not None:
+            if np.ndim(tau) != 0:
+                raise ValueError(f"tau has shape {np.shape(tau)} but P0 is one matrix for all tracks; allowed: a scalar tau")
             S = np.diag([1.0, tau])
             out["P0"] = S @ params["P0"] @ S
         return out

@@ -67,6 +67,11 @@ class UFIR(FIRFilter):
         Channels are processed in a few buckets of similar start-up length."""
         n_startup = np.minimum(L_c - 1, z.shape[1])
         psi = gparams["psi"][group] if "psi" in gparams else np.zeros(z.shape[0])
+        S = int(n_startup[0])
+        if (n_startup == S).all():  # one start-up length (e.g. one tuning): a single block
+            if S > 0:
+                X[:, :S] = self._growing_horizon(z[:, :S], valid[:, :S], psi)
+            return
         bucket = np.ceil(np.log2(np.maximum(n_startup, 1))).astype(int)
         for b in np.unique(bucket[n_startup > 0]):
             idx = np.flatnonzero((bucket == b) & (n_startup > 0))
@@ -76,21 +81,30 @@ class UFIR(FIRFilter):
 
     def _growing_horizon(self, z: np.ndarray, valid: np.ndarray, psi: np.ndarray) -> np.ndarray:
         """Full-horizon estimates (C, S, 2) from frames 0 … n for every n < S (NaN where unobservable)."""
-        S = z.shape[1]
-        axis = self.model.axis()
-        F_pow = matrix_powers(axis.F, S)  # F^l
-        f = axis.H[0] @ F_pow  # (S, 2) rows H F^l
-        f_prev = np.vstack([axis.H @ np.linalg.inv(axis.F), f[:-1]])  # H F^{l−1}
-        plain, diff = row_kinds(valid)
-        Psi, Z = differenced(z, diff, psi)
-        r0 = valid * (f[None, :, 0] - Psi * f_prev[None, :, 0])  # row D_l F^l, first component
-        r1 = valid * (f[None, :, 1] - Psi * f_prev[None, :, 1])
+        f, f_prev = _forward_rows(self.model.tau, z.shape[1])  # rows H F^l and H F^{l−1}
+        clean = valid.all()
+        if clean:  # Ψ_l = ψ from frame 1 on
+            Psi = np.repeat(psi[:, None], z.shape[1], axis=1)
+            Psi[:, 0] = 0.0
+            Z = z.copy()
+            Z[:, 1:] -= Psi[:, 1:] * z[:, :-1]
+            r0 = f[:, 0] - Psi * f_prev[:, 0]  # row D_l F^l, first component
+            r1 = f[:, 1] - Psi * f_prev[:, 1]
+        else:
+            plain, diff = row_kinds(valid)
+            Psi, Z = differenced(z, diff, psi)
+            r0 = valid * (f[None, :, 0] - Psi * f_prev[None, :, 0])
+            r1 = valid * (f[None, :, 1] - Psi * f_prev[None, :, 1])
         gram = np.stack([r0 * r0, r0 * r1, r1 * r1, r0 * Z, r1 * Z])
         np.cumsum(gram, axis=2, out=gram)  # C_fᵀ C_f and C_fᵀ Z over rows 0 … n
-        x_0 = solve_2x2(gram[0], gram[1], gram[2], gram[3], gram[4])  # (C, S, 2)
-        counts = np.cumsum(np.stack(row_statistics(plain, diff)), axis=2)  # rows 0 … n of each kind
-        x_0[~determined(*counts, psi[:, None])] = np.nan
-        return np.matmul(F_pow, x_0[..., None])[..., 0]
+        x = solve_2x2(gram[0], gram[1], gram[2], gram[3], gram[4])  # x̂_0 from rows 0 … n, (C, S, 2)
+        if clean:  # one undifferenced row (frame 0), then differenced ones: determined from n = 1 on
+            x[:, 0] = np.nan
+        else:
+            counts = np.cumsum(np.stack(row_statistics(plain, diff)), axis=2)  # rows 0 … n of each kind
+            x[~determined(*counts, psi[:, None])] = np.nan
+        x[..., 0] = x[..., 0] * f[:, 0] + x[..., 1] * f[:, 1]  # x̂_n = F^n x̂_0: position H F^n x̂_0, same velocity
+        return x
 
     def _masked(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, cs: np.ndarray, ns: np.ndarray,
                 L_w: np.ndarray, group: np.ndarray, gparams: dict[str, np.ndarray]) -> None:
@@ -154,9 +168,31 @@ def _clean_gain(tau: float, L: int) -> np.ndarray:
 
 def back_projected_rows(F: np.ndarray, H: np.ndarray, L: int) -> np.ndarray:
     """``C̄`` (L, K) with row i = ``H F^{−(L−1−i)}`` (oldest sample first, newest row = H): the rows that map
-    ``x_n`` to the noiseless measurements of a window ending at n (notes §1.1, backward Euler)."""
+    ``x_n`` to the noiseless measurements of a window ending at n (notes §1.1, backward Euler). Cached per
+    (F, H, L); the result is read-only."""
+    F = np.asarray(F, dtype=float)
+    return _back_projected_rows(F.tobytes(), np.asarray(H, dtype=float)[0].tobytes(), F.shape[0], L)
+
+
+@lru_cache(maxsize=1024)
+def _back_projected_rows(F_bytes: bytes, h_bytes: bytes, K: int, L: int) -> np.ndarray:
+    F = np.frombuffer(F_bytes).reshape(K, K)
     F_inv_powers = matrix_powers(np.linalg.inv(F), L)  # F^{−k}, k = 0 … L−1
-    return (np.asarray(H, dtype=float)[0] @ F_inv_powers)[::-1]
+    rows = np.ascontiguousarray((np.frombuffer(h_bytes) @ F_inv_powers)[::-1])
+    rows.setflags(write=False)
+    return rows
+
+
+@lru_cache(maxsize=1024)
+def _forward_rows(tau: float, S: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rows ``H F^l`` (S, 2) and ``H F^{l−1}`` (S, 2), l = 0 … S−1, of the one-coordinate CV model at
+    interval ``tau`` (cached; read-only): the forward batch form of the start-up."""
+    axis = constant_velocity(tau, ndim=1)
+    f = axis.H[0] @ matrix_powers(axis.F, S)
+    f_prev = np.vstack([axis.H @ np.linalg.inv(axis.F), f[:-1]])
+    for a in (f, f_prev):
+        a.setflags(write=False)
+    return f, f_prev
 
 
 def ls_gains(C: np.ndarray) -> np.ndarray:
@@ -164,23 +200,32 @@ def ls_gains(C: np.ndarray) -> np.ndarray:
 
     Computed as ``R⁻¹Qᵀ`` from a thin QR factorisation ``C = QR`` (Gram–Schmidt with one
     re-orthogonalisation, vectorised over the P designs; no normal equations). Zero rows of C (missing
-    samples) give exactly zero columns of the gain."""
-    P, L, K = C.shape
-    Q = np.empty((P, L, K))
+    samples) give exactly zero columns of the gain (every step maps a zero entry to zero)."""
+    return ls_gains_of_columns([C[:, :, j] for j in range(C.shape[2])])
+
+
+def ls_gains_of_columns(columns: list[np.ndarray]) -> np.ndarray:
+    """:func:`ls_gains` of the design whose K columns are given separately, each (P, L)."""
+    K = len(columns)
+    P, L = columns[0].shape
+    Q: list[np.ndarray] = []  # orthonormal columns, each (P, L)
     R = np.zeros((P, K, K))
     for j in range(K):  # columns of C (K = 2 per coordinate), not taps
-        v = C[:, :, j].copy()
-        for _ in range(2):  # classical Gram–Schmidt twice ("twice is enough")
-            coef = np.einsum("plk,pl->pk", Q[:, :, :j], v)
-            v -= np.einsum("plk,pk->pl", Q[:, :, :j], coef)
-            R[:, :j, j] += coef
-        R[:, j, j] = np.linalg.norm(v, axis=1)
-        Q[:, :, j] = v / R[:, j, j, None]
+        v = np.array(columns[j], dtype=float)
+        for _ in range(2):  # Gram–Schmidt twice ("twice is enough")
+            for i, q in enumerate(Q):
+                coef = np.einsum("pl,pl->p", q, v)
+                v -= coef[:, None] * q
+                R[:, i, j] += coef
+        R[:, j, j] = np.sqrt(np.einsum("pl,pl->p", v, v))
+        Q.append(v / R[:, j, j, None])
     gain = np.empty((P, K, L))  # back substitution R W = Qᵀ
     for i in range(K - 1, -1, -1):
-        rest = np.einsum("pk,pkl->pl", R[:, i, i + 1:], gain[:, i + 1:, :])
-        gain[:, i, :] = (Q[:, :, i] - rest) / R[:, i, i, None]
-    return np.where(np.any(C != 0, axis=2)[:, None, :], gain, 0.0)
+        row = Q[i]
+        for k in range(i + 1, K):
+            row = row - R[:, i, k, None] * gain[:, k]
+        np.divide(row, R[:, i, i, None], out=gain[:, i])
+    return gain
 
 
 def ramp_gain(N: int, tau: float) -> np.ndarray:
@@ -261,10 +306,12 @@ def _batch_start(rows: list[int], H: np.ndarray, F_inv: np.ndarray,
 def solve_2x2(a: np.ndarray, c: np.ndarray, d: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> np.ndarray:
     """Solve stacked symmetric 2×2 systems ``[[a, c], [c, d]] x = [b0, b1]`` in closed form → (..., 2)
     (NaN where the determinant is not positive)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        det = a * d - c * c
-        det = np.where(det > 0, det, np.nan)
-        return np.stack([(d * b0 - c * b1) / det, (a * b1 - c * b0) / det], axis=-1)
+    det = a * d - c * c
+    ok = det > 0
+    out = np.full((*det.shape, 2), np.nan)
+    np.divide(d * b0 - c * b1, det, out=out[..., 0], where=ok)
+    np.divide(a * b1 - c * b0, det, out=out[..., 1], where=ok)
+    return out
 
 
 def row_kinds(valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -30,7 +30,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from filters.fir_core import check_fir_params
-from filters.ufir import UFIR, back_projected_rows, determined, ls_gains, row_kinds, row_statistics
+from filters.ufir import (UFIR, back_projected_rows, determined, ls_gains, ls_gains_of_columns, row_kinds,
+                          row_statistics)
 from filters.validation import check_psi
 
 
@@ -58,6 +59,19 @@ class UFIRCMN(UFIR):
         W = A.copy()  # fold z_l = y_l − ψ y_{l−1} into weights on raw samples
         W[:, :, :-1] -= psi * A[:, :, 1:] * diff[:, None, 1:]
         return W
+
+    def clean_gains(self, params: dict[str, np.ndarray], L_max: int) -> np.ndarray:
+        """All full-window gains in one least-squares batch: a window of L = N + 1 raw samples right-aligned in
+        L_max columns has the rows ``D F^{−(L_max−1−j)}`` of the L_max-window at its columns j > L_max − L (its
+        oldest sample only feeds the next difference) and zero rows before, which give zero gain columns."""
+        axis = self.model.axis()
+        h = back_projected_rows(axis.F, axis.H, L_max + 1)  # h[j + 1] = H F^{−(L_max−1−j)}
+        first_row = L_max - params["horizon"]  # column of the oldest differenced sample
+        present = np.arange(L_max)[None, :] >= first_row[:, None]  # (P, L_max)
+        psi = params["psi"][:, None]
+        A = ls_gains_of_columns([present * (h[1:, k] - psi * h[:-1, k]) for k in range(2)])
+        A[:, :, :-1] -= psi[:, None] * A[:, :, 1:] * present[:, None, 1:]
+        return A
 
     def observable(self, valid: np.ndarray, params: dict[str, np.ndarray]) -> np.ndarray:
         plain, diff = self._kinds(valid, params)

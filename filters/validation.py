@@ -28,7 +28,7 @@ def as_param(name: str, value: object) -> np.ndarray:
 def check_positive(name: str, value: object) -> np.ndarray:
     """Finite and > 0 (noise standard deviations, sampling time)."""
     arr = as_param(name, value)
-    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+    if not ((arr > 0) & (arr < np.inf)).all():  # NaN fails both comparisons
         raise ValueError(f"{name}={_describe(value)} is out of range: allowed finite values > 0")
     return arr
 
@@ -36,7 +36,7 @@ def check_positive(name: str, value: object) -> np.ndarray:
 def check_psi(value: object) -> np.ndarray:
     """CMN coloredness factor, 0 <= ψ < 1."""
     arr = as_param("psi", value)
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0) or np.any(arr >= 1):
+    if not ((arr >= 0) & (arr < 1)).all():  # NaN fails both comparisons
         raise ValueError(f"psi={_describe(value)} is out of range: allowed 0 <= psi < 1")
     return arr
 
@@ -44,12 +44,7 @@ def check_psi(value: object) -> np.ndarray:
 def check_horizon(value: object, K: int, max_horizon: int = 100_000) -> np.ndarray:
     """FIR horizon N: an integer with K <= N <= max_horizon."""
     arr = as_param("horizon", value)
-    if (
-        not np.all(np.isfinite(arr))
-        or np.any(arr != np.round(arr))
-        or np.any(arr < K)
-        or np.any(arr > max_horizon)
-    ):
+    if not ((arr >= K) & (arr <= max_horizon) & (arr == np.round(arr))).all():  # NaN fails every comparison
         raise ValueError(
             f"horizon={_describe(value)} is out of range: allowed integers {K} <= horizon <= {max_horizon}"
             f" (K={K} is the state size)"
@@ -68,7 +63,7 @@ def check_measurements(y: object, M: int) -> tuple[np.ndarray, bool]:
         raise ValueError(f"y has {arr.shape[-1]} measurement columns (shape {arr.shape}); the model has M={M}")
     if arr.shape[-2] < 1:
         raise ValueError(f"y has no frames (shape {arr.shape}); allowed: T >= 1")
-    if np.any(np.isinf(arr)):
+    if np.isinf(arr).any():
         raise ValueError("y contains ±inf; allowed: finite values, or NaN for a missing measurement")
     batched = arr.ndim == 3
     return (arr if batched else arr[None]), batched
@@ -86,5 +81,7 @@ def broadcast_params(params: dict[str, np.ndarray], n_tracks: int, batched: bool
                 )
             if arr.shape[0] != n_tracks:
                 raise ValueError(f"{name} has shape {arr.shape}; y has B={n_tracks} tracks, allowed: () or ({n_tracks},)")
-        out[name] = np.broadcast_to(arr, (n_tracks,))
+            out[name] = arr
+        else:
+            out[name] = np.full(n_tracks, arr, dtype=arr.dtype)
     return out

@@ -28,10 +28,11 @@ import filters
 
 
 def best_rate(count: int, fn, repeat: int) -> float:
+    """``count`` / the shortest of ``repeat`` timed calls ``fn(r)``, r = 0 … repeat − 1."""
     best = np.inf
-    for _ in range(repeat):
+    for r in range(repeat):
         t0 = time.perf_counter()
-        fn()
+        fn(r)
         best = min(best, time.perf_counter() - t0)
     return count / best
 
@@ -50,10 +51,11 @@ def main(argv: list[str] | None = None) -> None:
     env = gym.make("bboxtune/FilterTune-v0", backend=args.backend, track_length=args.track_length)
     env.reset(seed=args.seed)
     env.action_space.seed(args.seed)
-    actions = [env.action_space.sample() for _ in range(args.episodes)]
+    # fresh actions in every timed block: no filter gain comes from the cache of an earlier block
+    actions = [[env.action_space.sample() for _ in range(args.episodes)] for _ in range(args.repeat)]
 
-    def steps() -> None:
-        for a in actions:
+    def steps(r: int) -> None:
+        for a in actions[r]:
             env.reset()
             env.step(a)
 
@@ -63,10 +65,10 @@ def main(argv: list[str] | None = None) -> None:
 
     u = env.unwrapped
     rng = np.random.default_rng(args.seed)
-    batches = [rng.uniform(-1, 1, (args.candidates, u.action_map.dim)).astype(np.float32) for _ in range(args.calls)]
+    batches = rng.uniform(-1, 1, (args.repeat, args.calls, args.candidates, u.action_map.dim)).astype(np.float32)
 
-    def scores() -> None:
-        for b in batches:
+    def scores(r: int) -> None:
+        for b in batches[r]:
             env.reset()
             u.score(b)
 
@@ -75,10 +77,10 @@ def main(argv: list[str] | None = None) -> None:
 
     env.reset(seed=args.seed)
     ep = u.episode
-    params = u.action_map.to_params(actions[0], ep.nominal)
+    params = u.action_map.to_params(actions[0][0], ep.nominal)
     from envs.scoring import run_positions
 
-    filter_rate = best_rate(args.episodes, lambda: [run_positions(args.backend, ep.y, ep.tau, params) for _ in range(args.episodes)], args.repeat)
+    filter_rate = best_rate(args.episodes, lambda r: [run_positions(args.backend, ep.y, ep.tau, params) for _ in range(args.episodes)], args.repeat)
     print(f"[3] the filter alone (one candidate): {filter_rate:,.0f} runs/s; a step costs "
           f"{filter_rate / step_rate:.1f} filter runs (a step includes a rule run, the simulation, features, scoring)")
 

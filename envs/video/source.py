@@ -35,7 +35,7 @@ import numpy as np
 from envs.actions import Nominal
 from envs.boxes import xywh_to_cxcywh
 from envs.features import box_scale
-from envs.sources import Episode
+from envs.sources import Episode, Source
 from envs.video.detectors import DETECTORS, detect_video, make_detector
 from envs.video.synthetic import VideoRanges, synthetic_video
 from filters.horizon import rule_horizon
@@ -128,9 +128,9 @@ def parse_sequence(name: str) -> tuple[str, int]:
     return split, int(index)
 
 
-class VideoSource:
-    """Episodes from synthetic videos of one split measured by one detector (same interface as
-    :class:`envs.sources.SimSource`: ``draw(sequence, noise_seed) -> Episode``; boxes cx, cy, w, h)."""
+class VideoSource(Source):
+    """Episodes from synthetic videos of one split measured by one detector (an :class:`envs.sources.Source`:
+    ``draw(sequence, noise_seed) -> Episode``; boxes cx, cy, w, h)."""
 
     def __init__(self, cfg: Any, settings: VideoSettings | None = None) -> None:
         self.cfg = cfg

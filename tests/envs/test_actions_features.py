@@ -74,6 +74,22 @@ def test_features_finite_and_named() -> None:
     assert f.shape == (len(FEATURE_NAMES),) and f.dtype == np.float32 and np.all(np.isfinite(f))
 
 
+def test_batched_features_equal_one_track_at_a_time() -> None:
+    rng = np.random.default_rng(1)
+    ys = [_track(rng, T=300, sigma_v=sv, tau=tau)[1] for sv, tau in ((1.0, 0.05), (4.0, 0.033), (2.0, 0.1))]
+    ys[1][[3, 50, 51, 200]] = np.nan  # missing frames: the NaN-aware path in one row only
+    ys[2][:, 2:] = ys[2][0, 2:]  # constant size: degenerate size statistics
+    pilots = [y + rng.normal(0, 0.5, y.shape) for y in ys]
+    taus, sv, sw = [0.05, 0.033, 0.1], [1.0, 4.0, 2.0], [30.0, 10.0, 3.0]
+    batch = measurement_features(np.stack(ys), taus, sv, sw, np.stack(pilots))
+    assert batch.shape == (3, len(FEATURE_NAMES))
+    for b in range(3):
+        np.testing.assert_array_equal(batch[b], measurement_features(ys[b], taus[b], sv[b], sw[b], pilots[b]))
+    sigmas = estimate_sigmas(np.stack(ys), np.array(taus))
+    for b in range(3):
+        assert (sigmas[0][b], sigmas[1][b]) == estimate_sigmas(ys[b], taus[b])
+
+
 def test_features_finite_on_degenerate_input() -> None:
     y = np.full((10, 4), 5.0)
     y[3] = np.nan

@@ -43,6 +43,31 @@ def test_same_seed_same_everything(env_id: str) -> None:
     assert runs[0][2:] == runs[1][2:]
 
 
+@pytest.mark.parametrize("backend", ["ufir_cmn", "kf_cmn", "oufir"])
+def test_an_episode_prepared_in_a_block_equals_the_same_episode_pinned(backend: str) -> None:
+    env = _make("bboxtune/FilterTune-v0", backend, "sim")
+    env.reset(seed=11)
+    assert env.unwrapped.source.block > 1  # unpinned sim episodes come from prepared blocks
+    action = np.full(env.action_space.shape, 0.3, np.float32)
+    for _ in range(3):
+        obs, info = env.reset()
+        _, reward, *_, step_info = env.step(action)
+        pinned, _ = env.reset(options={"noise_seed": info["track"]["noise_seed"]})
+        _, pinned_reward, *_, pinned_info = env.step(action)
+        np.testing.assert_array_equal(obs, pinned)  # bit-identical: episodes are pure functions of their seed
+        assert (reward, step_info["rule_rmse"]) == (pinned_reward, pinned_info["rule_rmse"])
+
+
+def test_episode_sequence_does_not_depend_on_blocks_and_reseeding_restarts_it() -> None:
+    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+    seeds = [env.reset(seed=8)[1]["track"]["noise_seed"]] + [env.reset()[1]["track"]["noise_seed"] for _ in range(5)]
+    rng = np.random.default_rng(8)  # one draw per episode from np_random, as without blocks
+    assert seeds == [int(rng.integers(2**62)) for _ in range(6)]
+    env.reset(options={"noise_seed": 5})  # a pinned episode leaves the sequence alone
+    assert env.reset()[1]["track"]["noise_seed"] == int(rng.integers(2**62))
+    assert env.reset(seed=8)[1]["track"]["noise_seed"] == seeds[0]  # reseeding drops the prepared episodes
+
+
 def test_noise_seed_pins_the_episode() -> None:
     env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
     a, _ = env.reset(seed=1, options={"noise_seed": 77})
@@ -115,8 +140,8 @@ def test_observation_uses_measurements_only() -> None:
     ep = u.episode
     from dataclasses import replace
 
-    u.episode = replace(ep, truth=ep.truth + 1000.0, meta={**ep.meta, "psi": 0.0, "sigma_w": 1e3})
-    assert np.array_equal(u._observe(), obs)
+    (_, _, again), = u._prepare([replace(ep, truth=ep.truth + 1000.0, meta={**ep.meta, "psi": 0.0, "sigma_w": 1e3})])
+    assert np.array_equal(again, obs)
 
 
 @pytest.mark.parametrize("bad", [np.array([np.nan, 0.0]), np.array([0.0, np.inf]), np.array([2.0, 0.0])])
@@ -188,6 +213,39 @@ def test_fused_scores_equal_the_metric_functions() -> None:
     with_est = ok & np.isfinite(est[0]).all(axis=1)
     np.testing.assert_allclose(got["rmse"], metrics.rmse_total(est[:, with_est], truth[with_est]), rtol=1e-12)
     np.testing.assert_allclose(got["iou_mean"], np.nan_to_num(metrics.iou(p, g)[:, ok]).mean(axis=1), rtol=1e-12)
+
+
+def test_scores_with_one_truth_per_row_equal_separate_calls() -> None:
+    from envs.scoring import score_estimates
+
+    rng = np.random.default_rng(3)
+    truth = np.column_stack([rng.uniform(50, 60, (3, 60, 2)).reshape(-1, 2), rng.uniform(10, 20, (180, 2))]).reshape(3, 60, 4)
+    truth[1, [4, 9]] = np.nan  # no ground truth on two frames of one row
+    est = truth + rng.normal(0, 3, truth.shape)
+    est[2, :5] = np.nan  # no estimate yet
+    est[1, 4] = truth[0, 4]  # an estimate where there is no truth: not scored
+    rows = score_estimates(est, truth)
+    for b in range(3):
+        alone = score_estimates(est[b:b + 1], truth[b])
+        for key, value in alone.items():
+            np.testing.assert_allclose(rows[key][b], value[0], rtol=1e-14)
+
+
+@pytest.mark.parametrize("backend", ["ufir_cmn", "oufir", "kf_cmn"])
+def test_run_tracks_equals_each_track_alone(backend: str) -> None:
+    from envs.scoring import run_positions, run_tracks
+    from envs.simulate import ScenarioRanges, simulate
+
+    rng = np.random.default_rng(2)
+    tracks = [simulate(ScenarioRanges(n_frames=(T, T)).sample(rng), rng) for T in (90, 90, 70, 90)]
+    params = {"psi": np.array([0.0, 0.5, 0.3, 0.8]), "horizon": np.array([10, 25, 40, 3]),
+              "sigma_w": np.array([5.0, 20.0, 1.0, 50.0]), "sigma_v": np.array([1.0, 2.0, 0.5, 3.0])}
+    ys = [t.y for t in tracks]
+    ys[3][10:14] = np.nan
+    together = run_tracks(backend, ys, [t.tau for t in tracks], params)
+    for b, t in enumerate(tracks):
+        alone = run_positions(backend, ys[b], t.tau, {k: v[b:b + 1] for k, v in params.items()})[0]
+        np.testing.assert_allclose(together[b], alone, rtol=1e-12, atol=1e-9)
 
 
 def test_fused_scores_on_threshold_boundaries() -> None:

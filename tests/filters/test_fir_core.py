@@ -89,17 +89,22 @@ def test_fallback_before_and_during_unobservable_stretches() -> None:
     np.testing.assert_allclose(out[7], [8.0, 1.0 / TAU])
 
 
+@pytest.mark.parametrize("wrap", [False, True])
 @pytest.mark.parametrize("L", [1, 3, 24, 300])
-def test_correlate_matches_sliding_products(L: int) -> None:
+def test_correlate_matches_sliding_products(L: int, wrap: bool) -> None:
     rng = np.random.default_rng(L)
     y0 = rng.normal(size=(5, 120)) + 1e3
     W = rng.normal(size=(2, 2, L))
+    W[1, :, : L // 2] = 0.0  # group 1: a shorter kernel, right-aligned
+    L_g = [L, L - L // 2]
     group = np.array([0, 1, 1, 0, 1])
-    out = correlate(y0, W, group)
+    out = correlate(y0, W, group, wrap=wrap)
     padded = np.concatenate([np.zeros((5, L - 1)), y0], axis=1)
     for c in range(5):
+        first = L_g[group[c]] - 1 if wrap else 0  # wrap: exact from the first full window on
         for n in sorted({0, 1, min(L - 1, 119), 119}):
-            np.testing.assert_allclose(out[c, n], W[group[c]] @ padded[c, n:n + L], rtol=1e-11, atol=1e-9)
+            if n >= first:
+                np.testing.assert_allclose(out[c, n], W[group[c]] @ padded[c, n:n + L], rtol=1e-11, atol=1e-9)
 
 
 def test_gain_cache_evicts_least_recently_used_by_bytes() -> None:
@@ -118,3 +123,23 @@ def test_check_fir_params_rule_and_errors() -> None:
                       ({"sigma_w": np.ones(2), "sigma_v": np.ones(3)}, "lengths")]:
         with pytest.raises(ValueError, match=name):
             check_fir_params({"sigma_w": 1.0, "sigma_v": 1.0, "horizon": None, **bad}, MODEL1)
+
+
+@pytest.mark.parametrize("name", filters.NAMES)
+def test_positions_equal_the_position_columns_of_run(name: str) -> None:
+    model = filters.constant_velocity(TAU, ndim=2)
+    y = np.stack([noisy_tracks(3, 80, seed=s, missing=0.05) for s in (4, 5)], axis=-1)  # (3, 80, 2)
+    f = filters.make(name, model, **({"horizon": 12} if "horizon" in filters.filter_class(name).DEFAULTS else {}))
+    states = f.run(y)
+    np.testing.assert_allclose(f.positions(y), states[..., :2], rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(f.positions(y[1]), states[1, :, :2], rtol=1e-12, atol=1e-9)
+
+
+def test_params_in_frames_takes_one_interval_per_track() -> None:
+    params = {"sigma_w": np.array([2.0, 3.0]), "horizon": np.array([5, 6])}
+    out = UFIR.params_in_frames(params, np.array([0.1, 0.5]))
+    np.testing.assert_allclose(out["sigma_w"], [0.02, 0.75])
+    assert out["horizon"] is params["horizon"]
+    OFIR = filters.filter_class("ofir")
+    with pytest.raises(ValueError, match="P0 is one matrix"):
+        OFIR.params_in_frames({"sigma_w": 1.0, "P0": np.eye(2)}, np.array([0.1, 0.2]))

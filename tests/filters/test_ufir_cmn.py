@@ -69,6 +69,16 @@ def test_full_window_gain_is_least_squares_on_differenced_samples() -> None:
     np.testing.assert_allclose(W @ y, np.linalg.lstsq(C, z, rcond=None)[0], rtol=1e-10)
 
 
+def test_padded_batch_of_full_gains_equals_each_window_alone() -> None:
+    f = filters.make("ufir_cmn", MODEL1, psi=0.5, horizon=10)
+    psi, horizon = np.array([0.0, 0.4, 0.93, 0.7]), np.array([2, 9, 40, 40])
+    batch = f.clean_gains({"psi": psi, "horizon": horizon}, 41)
+    for p, N, W in zip(psi, horizon, batch):
+        alone = f.window_gains(np.ones((1, N + 1), bool), {"psi": np.array([p]), "horizon": np.array([N])})[0]
+        np.testing.assert_allclose(W[:, 41 - (N + 1):], alone, rtol=1e-11, atol=1e-12 * np.abs(alone).max())
+        assert not W[:, : 41 - (N + 1)].any()  # zero before a shorter window
+
+
 @pytest.mark.parametrize("psi", [0.0, 0.5, 0.99])
 def test_noiseless_ramp_is_reproduced(psi: float) -> None:
     p = 40.0 + 6.0 * np.arange(150) * TAU
