@@ -9,7 +9,8 @@ later). Each frame's predict + update is then one affine map per channel,
     x_n = M_n x_{n-1} + g_n m_n,                     M_n = (I − K_n D_n) A_n,  g_n = (I − K_n D_n) Λ_n + K_n
 
 (from x⁻ = A x_{n-1} + Λ m_n and x_n = x⁻ + K (m_n − D x⁻)), applied to all channels at once; only the time
-loop is Python. ``m_n`` is the scalar measurement a frame uses (``y_n``, or ``z_n = y_n − ψ y_{n-1}`` for
+loop is Python — for a single row (one tuning, e.g. one track) a loop over blocks of 16 frames, each one
+matrix product (:func:`_affine_blocks`). ``m_n`` is the scalar measurement a frame uses (``y_n``, or ``z_n = y_n − ψ y_{n-1}`` for
 KF-CMN), ``D`` its observation row, ``A``/``Λ`` the (de-correlated) transition and input gain.
 
 Frame kinds (per channel and frame):
@@ -221,46 +222,50 @@ def apply_affine(coef: np.ndarray, steady_from: int, row_of_channel: np.ndarray,
                  x_start: np.ndarray) -> np.ndarray:
     """Run x_n = M_n x_{n-1} + g_n m_n for every channel: ``coef`` (T, 6, G) constant from frame
     ``steady_from`` on, ``m`` (C, T) with 0 where a frame has no measurement, ``x_start`` (C, 2).
-    Returns (C, T, 2). With a single row (G = 1) the steady part is applied in blocks of frames."""
+    Returns (C, T, 2). With a single row (G = 1) the frames are applied in blocks (:func:`_affine_blocks`)."""
     C, T = m.shape
     G = coef.shape[2]
     m_t = np.ascontiguousarray(m.T)
+    if G == 1:
+        return _affine_blocks(coef[:, :, 0], x_start.T, m_t).transpose(2, 0, 1)
     out = np.empty((T, 2, C))
     p, v = x_start[:, 0], x_start[:, 1]
-    stop = steady_from if G == 1 else T
     steady = coef[min(steady_from, T - 1)].take(row_of_channel, axis=1)
-    for n in range(stop):
-        c = coef[n] if G == 1 else coef[n].take(row_of_channel, axis=1) if n < steady_from else steady
+    for n in range(T):
+        c = coef[n].take(row_of_channel, axis=1) if n < steady_from else steady
         p, v = c[0] * p + c[1] * v + c[4] * m_t[n], c[2] * p + c[3] * v + c[5] * m_t[n]
         out[n, 0] = p
         out[n, 1] = v
-    if stop < T:
-        out[stop:] = _steady_blocks(coef[stop, :4, 0].reshape(2, 2), coef[stop, 4:, 0], np.stack([p, v]), m_t[stop:])
     return out.transpose(2, 0, 1)
 
 
-def _steady_blocks(M: np.ndarray, g: np.ndarray, x_prev: np.ndarray, m: np.ndarray, block: int = 16) -> np.ndarray:
-    """x_n = M x_{n-1} + g m_n with constant M (2, 2), g (2,) for all channels, ``block`` frames per matrix
-    product: within a block, x_{b+i} = M^{i+1} x_{b-1} + Σ_{j<=i} M^{i-j} g m_{b+j}.
-    ``x_prev`` (2, C), ``m`` (T, C) → (T, 2, C)."""
+def _affine_blocks(coef: np.ndarray, x_prev: np.ndarray, m: np.ndarray, block: int = 16) -> np.ndarray:
+    """x_n = M_n x_{n-1} + g_n m_n for all channels, with ``coef`` (T, 6) rows [M (row-major), g] shared by
+    them, ``block`` frames per matrix product: within a block starting at frame b,
+    x_{b+i} = Φ_i x_{b-1} + Σ_{j<=i} Ψ_ij m_{b+j} with Φ_i = M_{b+i}⋯M_b and Ψ_ij = M_{b+i}⋯M_{b+j+1} g_{b+j}
+    (Φ, Ψ of all blocks built together, a loop over the ``block`` offsets). ``x_prev`` (2, C) the state before
+    frame 0, ``m`` (T, C) → (T, 2, C)."""
     T, C = m.shape
     L = min(block, T)
-    powers = np.empty((L + 1, 2, 2))  # M^0 … M^L
-    powers[0] = np.eye(2)
-    for i in range(L):
-        powers[i + 1] = M @ powers[i]
-    impulse = powers[:L] @ g  # (L, 2): M^i g
-    lag = np.arange(L)[:, None] - np.arange(L)[None, :]
-    toeplitz = np.where(lag[:, None, :] >= 0, impulse[np.clip(lag, 0, None)].transpose(0, 2, 1), 0.0)
-    toeplitz = toeplitz.reshape(2 * L, L)  # row (i, component), column j
-    propagate = powers[1:].reshape(2 * L, 2)  # row (i, component): M^{i+1}
-    out = np.empty((T, 2, C))
-    for b in range(0, T, L):
-        n = min(L, T - b)
-        block_out = propagate[: 2 * n] @ x_prev + toeplitz[: 2 * n, :n] @ m[b : b + n]
-        out[b : b + n] = block_out.reshape(n, 2, C)
-        x_prev = out[b + n - 1]
-    return out
+    nb = -(-T // L)
+    pad = nb * L - T  # trailing frames with M = 0, g = 0: their outputs are dropped
+    coef = np.concatenate([coef, np.zeros((pad, 6))]) if pad else coef
+    M, g = coef[:, :4].reshape(nb, L, 2, 2), coef[:, 4:].reshape(nb, L, 2)
+    Phi = np.empty((nb, L, 2, 2))
+    Psi = np.zeros((nb, L, L, 2))  # [block, i, j]
+    Phi[:, 0], Psi[:, 0, 0] = M[:, 0], g[:, 0]
+    for i in range(1, L):  # offsets within a block, not time
+        Phi[:, i] = M[:, i] @ Phi[:, i - 1]
+        Psi[:, i, :i] = np.einsum("bkl,bjl->bjk", M[:, i], Psi[:, i - 1, :i])
+        Psi[:, i, i] = g[:, i]
+    propagate = Phi.reshape(nb, 2 * L, 2)  # row (i, component)
+    drive = Psi.transpose(0, 1, 3, 2).reshape(nb, 2 * L, L)  # row (i, component), column j
+    m = np.concatenate([m, np.zeros((pad, C))]) if pad else m
+    out = np.empty((nb * L, 2, C))
+    for b in range(nb):  # blocks of frames, in order
+        out[b * L:(b + 1) * L] = (propagate[b] @ x_prev + drive[b] @ m[b * L:(b + 1) * L]).reshape(L, 2, C)
+        x_prev = out[(b + 1) * L - 1]
+    return out[:T]
 
 
 def _group_rows(key: np.ndarray, kinds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -108,7 +108,8 @@ def test_all_missing_track_is_nan_and_does_not_disturb_others() -> None:
     y[1] = np.nan
     out = filters.make("kf", model).run(y)
     assert np.all(np.isnan(out[1]))
-    np.testing.assert_array_equal(out[0], alone)
+    # two rows (different frame kinds) run frame by frame, a lone track in blocks of frames: equal to rounding
+    np.testing.assert_allclose(out[0], alone, rtol=1e-13, atol=1e-12)
 
 
 def test_steady_state_gain_matches_riccati() -> None:
