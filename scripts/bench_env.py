@@ -1,18 +1,19 @@
 """Environment benchmark: how fast episodes go through ``gym.make`` + ``step`` and through batched scoring.
 
-    python scripts/bench_env.py [--backend ufir_cmn] [--episodes 2000] [--candidates 256] [--track-length 500]
+    python scripts/bench_env.py [--backend ufir_cmn] [--episodes 1000] [--candidates 256] [--track-length 500]
 
 For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks) it prints
 
 1. steps/s through the public API: ``env.reset(); env.step(action)`` on ``gym.make``'s wrapped env (one
    step per episode, so every step includes drawing, simulating and summarising a new track and the
-   fixed-rule run it is compared with) — target >= 1,000 steps/s;
+   fixed-rule run it is compared with — prepared in blocks, see ``envs.tune_env``) — target >= 1,000 steps/s;
 2. episodes/s through the batched scoring path ``env.unwrapped.score(actions)`` with ``--candidates``
    distinct actions per call (each candidate is one filtered and scored episode) — target >= 5,000;
-3. the share of a step spent in the filter itself, from the same run, as a ratio.
+3. the cost of a step in runs of the filter alone (one candidate, gains cached), from the same run, as a ratio.
 
 Rates are the best of ``--repeat`` timed blocks (the machine is shared; the best block is the least
-disturbed). No unit test asserts on time.
+disturbed). Every block draws fresh random actions, so no filter gain comes from the cache of an earlier
+block (the fixed rule's gains repeat and are cached, as in training). No unit test asserts on time.
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ def main(argv: list[str] | None = None) -> None:
     from envs.scoring import run_positions
 
     filter_rate = best_rate(args.episodes, lambda r: [run_positions(args.backend, ep.y, ep.tau, params) for _ in range(args.episodes)], args.repeat)
-    print(f"[3] the filter alone (one candidate): {filter_rate:,.0f} runs/s; a step costs "
+    print(f"[3] the filter alone (one candidate, its gains cached): {filter_rate:,.0f} runs/s; a step costs "
           f"{filter_rate / step_rate:.1f} filter runs (a step includes a rule run, the simulation, features, scoring)")
 
 
