@@ -88,12 +88,12 @@ class ActionMap:
         a2 = a.reshape(1, -1) if a.ndim == 1 else a
         if a2.ndim != 2 or a2.shape[1] != self.dim:
             raise ValueError(f"action has shape {a.shape}; allowed ({self.dim},) or (A, {self.dim}) for tune={self.tune}")
-        if not np.all(np.isfinite(a2)):
-            raise ValueError(f"action {a.tolist() if a.size <= 8 else a.shape} contains NaN or inf; allowed finite values in [-1, 1]")
-        if np.any(np.abs(a2) > 1 + _TOLERANCE):
+        if not (np.abs(a2) <= 1 + _TOLERANCE).all():  # NaN and ±inf fail this too
+            if not np.isfinite(a2).all():
+                raise ValueError(f"action {a.tolist() if a.size <= 8 else a.shape} contains NaN or inf; allowed finite values in [-1, 1]")
             worst = float(a2.flat[np.argmax(np.abs(a2))])
             raise ValueError(f"action entry {worst} is out of range: allowed [-1, 1]")
-        return np.clip(a2, -1.0, 1.0)
+        return np.minimum(np.maximum(a2, -1.0), 1.0)
 
     def to_params(self, actions: np.ndarray, nominal: Nominal) -> dict[str, np.ndarray]:
         """Actions (d,) or (A, d) → {name: array (A,)} for every parameter in ``TUNABLE``

@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import os
+from functools import lru_cache
 from importlib import import_module
 from typing import Any
 
@@ -40,6 +41,7 @@ _REGISTRY: dict[str, tuple[str, str]] = {
 }
 
 
+@lru_cache(maxsize=None)
 def filter_class(name: str) -> type[Filter]:
     """The :class:`Filter` subclass of back end ``name`` (one of :data:`NAMES`)."""
     if name not in _REGISTRY:

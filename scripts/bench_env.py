@@ -12,7 +12,7 @@ For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks)
 3. the cost of a step in runs of the filter alone (one candidate, gains cached), from the same run, as a ratio.
 
 Rates are the best of ``--repeat`` timed blocks (the machine is shared; the best block is the least
-disturbed). Every block draws fresh random actions, so no filter gain comes from the cache of an earlier
+disturbed), with the median in parentheses. Every block draws fresh random actions, so no filter gain comes from the cache of an earlier
 block (the fixed rule's gains repeat and are cached, as in training). No unit test asserts on time.
 """
 
@@ -28,14 +28,14 @@ import envs  # noqa: F401  (registers the environments)
 import filters
 
 
-def best_rate(count: int, fn, repeat: int) -> float:
-    """``count`` / the shortest of ``repeat`` timed calls ``fn(r)``, r = 0 … repeat − 1."""
-    best = np.inf
+def rates(count: int, fn, repeat: int) -> tuple[float, float]:
+    """``count`` / the time of each of ``repeat`` timed calls ``fn(r)``, r = 0 … repeat − 1: (best, median)."""
+    seconds = []
     for r in range(repeat):
         t0 = time.perf_counter()
         fn(r)
-        best = min(best, time.perf_counter() - t0)
-    return count / best
+        seconds.append(time.perf_counter() - t0)
+    return count / min(seconds), count / float(np.median(seconds))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--candidates", type=int, default=256, help="actions per score() call")
     ap.add_argument("--calls", type=int, default=10, help="score() calls per timed block")
     ap.add_argument("--track-length", type=int, default=500)
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=5, help="timed blocks per measurement")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
 
@@ -60,9 +60,9 @@ def main(argv: list[str] | None = None) -> None:
             env.reset()
             env.step(a)
 
-    step_rate = best_rate(args.episodes, steps, args.repeat)
-    print(f"{args.backend}, {args.track_length}-frame box tracks, sim source")
-    print(f"[1] gym.make + reset + step: {step_rate:,.0f} steps/s (target >= 1,000)")
+    step_rate, step_median = rates(args.episodes, steps, args.repeat)
+    print(f"{args.backend}, {args.track_length}-frame box tracks, sim source; best (median) of {args.repeat} timed blocks")
+    print(f"[1] gym.make + reset + step: {step_rate:,.0f} ({step_median:,.0f}) steps/s (target >= 1,000)")
 
     u = env.unwrapped
     rng = np.random.default_rng(args.seed)
@@ -73,15 +73,17 @@ def main(argv: list[str] | None = None) -> None:
             env.reset()
             u.score(b)
 
-    score_rate = best_rate(args.calls * args.candidates, scores, args.repeat)
-    print(f"[2] batched score(), {args.candidates} candidates per call: {score_rate:,.0f} episodes/s (target >= 5,000)")
+    score_rate, score_median = rates(args.calls * args.candidates, scores, args.repeat)
+    print(f"[2] batched score(), {args.candidates} candidates per call: {score_rate:,.0f} ({score_median:,.0f}) "
+          "episodes/s (target >= 5,000)")
 
     env.reset(seed=args.seed)
     ep = u.episode
     params = u.action_map.to_params(actions[0][0], ep.nominal)
     from envs.scoring import run_positions
 
-    filter_rate = best_rate(args.episodes, lambda r: [run_positions(args.backend, ep.y, ep.tau, params) for _ in range(args.episodes)], args.repeat)
+    filter_rate, _ = rates(args.episodes, lambda r: [run_positions(args.backend, ep.y, ep.tau, params) for _ in range(args.episodes)],
+                           args.repeat)
     print(f"[3] the filter alone (one candidate, its gains cached): {filter_rate:,.0f} runs/s; a step costs "
           f"{filter_rate / step_rate:.1f} filter runs (a step includes a rule run, the simulation, features, scoring)")
 
