@@ -94,28 +94,13 @@ class Scenario:
         return np.array(_DEFAULT_BOX_X0) if self.ndim == 4 else np.zeros(self.K)
 
 
-def constant_velocity_paths(
-    p0: np.ndarray,
-    v0: np.ndarray,
-    sigma_w: np.ndarray,
-    tau: float,
-    delta: float,
-    n_frames: int,
-    rng: np.random.Generator,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Positions and velocities of x_n = F(τ + δ) x_{n−1} + B(τ) w_n for independent coordinates, by cumsums.
-
-    ``p0``, ``v0`` are (B, C) and ``sigma_w`` (C,); returns two (B, T, C) arrays with frame 0 = (p0, v0)."""
-    p0, v0 = np.asarray(p0, dtype=float), np.asarray(v0, dtype=float)
-    w = rng.standard_normal((p0.shape[0], n_frames - 1, p0.shape[1])) * np.asarray(sigma_w, dtype=float)
-    return _integrate(p0, v0, w, tau, delta)
-
-
 def _integrate(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray,
                delta: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(1) by cumsums from the scaled acceleration noise ``w`` (B, T − 1, C); ``tau``, ``delta`` scalars or
-    (B, 1, 1) arrays (one per track). Every track's arithmetic is the same whatever the batch. Computed with time
-    as the last (contiguous) axis, where cumulative sums are fast; returns (B, T, C) arrays."""
+    """Positions and velocities of x_n = F(τ + δ) x_{n−1} + B(τ) w_n (1) for independent coordinates, by
+    cumsums from the scaled acceleration noise ``w`` (B, T − 1, C) and the start ``p0``, ``v0`` (B, C); ``tau``,
+    ``delta`` scalars or (B, 1, 1) arrays (one per track). Every track's arithmetic is the same whatever the
+    batch. Computed with time as the last (contiguous) axis, where cumulative sums are fast; returns two
+    (B, T, C) arrays with frame 0 = (p0, v0)."""
     w = np.ascontiguousarray(w.transpose(0, 2, 1))  # (B, C, T − 1)
     v = np.concatenate([v0[:, :, None], v0[:, :, None] + tau * np.cumsum(w, axis=2)], axis=2)  # v_n = v_{n−1} + τ w_n (1)
     steps = (tau + delta) * v[:, :, :-1] + 0.5 * (tau * tau) * w  # p_n − p_{n−1} = (τ + δ) v_{n−1} + τ²/2 w_n (1)
