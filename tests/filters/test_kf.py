@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import filters
+from filters import kalman_core
 from filters.model import StateSpaceModel
 
 TAU = 0.05
@@ -86,6 +87,19 @@ def test_batched_equals_one_track_at_a_time_and_per_track_arrays() -> None:
                                    rtol=1e-12, atol=1e-9)
 
 
+def test_many_tunings_frame_by_frame_equal_each_alone_in_blocks() -> None:
+    rng = np.random.default_rng(6)
+    model = filters.constant_velocity(TAU)
+    y = simulate(rng, 200, 1, 10.0, 2.0, B=12)
+    y[2, 30:35] = np.nan
+    sigma_w = np.geomspace(0.1, 500.0, 12)  # more rows than kalman_core.BLOCK_ROWS: the frame-by-frame path
+    assert len(sigma_w) > kalman_core.BLOCK_ROWS
+    batched = filters.make("kf", model, sigma_w=sigma_w, sigma_v=2.0).run(y)
+    for b in range(12):
+        np.testing.assert_allclose(batched[b], filters.make("kf", model, sigma_w=sigma_w[b], sigma_v=2.0).run(y[b]),
+                                   rtol=1e-12, atol=1e-9)
+
+
 def test_start_from_first_measurement() -> None:
     model = filters.constant_velocity(TAU)
     y = np.array([np.nan, np.nan, 10.0, 10.5, 11.0, np.nan, 12.0])[:, None]
@@ -108,8 +122,7 @@ def test_all_missing_track_is_nan_and_does_not_disturb_others() -> None:
     y[1] = np.nan
     out = filters.make("kf", model).run(y)
     assert np.all(np.isnan(out[1]))
-    # two rows (different frame kinds) run frame by frame, a lone track in blocks of frames: equal to rounding
-    np.testing.assert_allclose(out[0], alone, rtol=1e-13, atol=1e-12)
+    np.testing.assert_array_equal(out[0], alone)
 
 
 def test_steady_state_gain_matches_riccati() -> None:
