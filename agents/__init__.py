@@ -5,6 +5,8 @@
 * :mod:`agents.baselines` — the policy interface and the rule / oracle / global / amortised baselines;
   :mod:`agents.adaptive` — the Sage–Husa adaptive KF.
 * :mod:`agents.splits` — train / val / test noise-seed splits; :mod:`agents.episodes` — pinned episodes.
-* :mod:`agents.runs`, :mod:`agents.callbacks` — run directories and checkpoints of ``scripts/train.py``;
+* :mod:`agents.runs`, :mod:`agents.callbacks`, :mod:`agents.checkpoints` — run directories and checkpoints of
+  ``scripts/train.py``; :mod:`agents.safe_load`, :mod:`agents.run_files` — their files read without unpickling;
   :mod:`agents.evaluate`, :mod:`agents.stats`, :mod:`agents.report`, :mod:`agents.plots` — ``scripts/compare.py``.
+* :mod:`agents.cli` — the scripts' argument checks (one-line errors, exit status 2).
 """

@@ -127,9 +127,9 @@ class RuleTrueSigmaPolicy(EpisodePolicy):
     truth_at_test = "y (true ψ, σ)"
 
     def episode_action(self, ep: Episode, amap: ActionMap, backend: str) -> np.ndarray:
-        if "sigma_xi" not in ep.meta:
-            raise ValueError(f"rule_true_sigma needs a simulated episode (source 'sim'); its meta has {sorted(ep.meta)}")
-        psi, sigma_w, sigma_xi = float(ep.meta["psi"]), float(ep.meta["sigma_w"]), float(ep.meta["sigma_xi"])
+        if "sigma_xi" not in ep.scenario:
+            raise ValueError(f"rule_true_sigma needs a simulated episode (source 'sim'); its scenario has {sorted(ep.scenario)}")
+        psi, sigma_w, sigma_xi = float(ep.scenario["psi"]), float(ep.scenario["sigma_w"]), float(ep.scenario["sigma_xi"])
         sigma_v = sigma_xi if backend in CMN_BACKENDS else sigma_xi / np.sqrt(1.0 - psi**2)
         return _rule_action(ep, amap, psi, sigma_w, sigma_v)
 

@@ -1,4 +1,4 @@
-"""SB3 callbacks of ``scripts/train.py``: training-episode log, atomic checkpoints, best-model statistics."""
+"""SB3 callbacks of ``scripts/train.py``: training-episode log, atomic checkpoints, the best model and its statistics."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
-from agents.runs import save_checkpoint, write_text_atomic
+from agents.checkpoints import save_checkpoint
+from agents.run_files import STATS, atomic_write, save_stats, write_text_atomic
 
 
 class EpisodeLog(BaseCallback):
@@ -31,19 +32,19 @@ class EpisodeLog(BaseCallback):
         write_text_atomic(path, "timestep,reward\n" + rows + ("\n" if rows else ""))
 
 
-class SaveBestNormalizer(BaseCallback):
-    """Called by EvalCallback on a new best model: saves the VecNormalize statistics beside it."""
+class SaveBest(BaseCallback):
+    """Called by EvalCallback on a new best model: writes ``best_model.zip`` and ``best_vecnormalize.json`` into
+    ``run_dir`` (each atomically; EvalCallback's own ``best_model_save_path`` writes in place, so it is unset)."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, run_dir: Path) -> None:
         super().__init__()
-        self.path = Path(path)
+        self.run_dir = Path(run_dir)
 
     def _on_step(self) -> bool:
+        atomic_write(self.run_dir / "best_model.zip", self.model.save)
         venv = self.model.get_vec_normalize_env()
         if venv is not None:
-            tmp = self.path.with_name(self.path.name + ".tmp")
-            venv.save(str(tmp))
-            tmp.replace(self.path)
+            save_stats(venv, self.run_dir / f"best_{STATS}")
         return True
 
 
@@ -66,12 +67,15 @@ def restore_eval_state(cb: EvalCallback, state: dict[str, Any]) -> None:
 class AtomicCheckpoint(BaseCallback):
     """Every ``every`` timesteps (checked when a rollout starts, i.e. after the previous update, so that
     everything counted in ``num_timesteps`` has been learnt from) writes a checkpoint with
-    :func:`agents.runs.save_checkpoint`, including the episode log and the EvalCallback state."""
+    :func:`agents.checkpoints.save_checkpoint`: the episode log, the EvalCallback state and the run's target
+    ``total_timesteps`` (what a resume without ``--timesteps`` trains to)."""
 
-    def __init__(self, run_dir: Path, every: int, episode_log: EpisodeLog, evaluation: EvalCallback) -> None:
+    def __init__(self, run_dir: Path, every: int, total_timesteps: int, episode_log: EpisodeLog,
+                 evaluation: EvalCallback) -> None:
         super().__init__()
         self.run_dir = Path(run_dir)
         self.every = int(every)
+        self.total_timesteps = int(total_timesteps)
         self.episode_log = episode_log
         self.evaluation = evaluation
         self.last = 0
@@ -88,6 +92,6 @@ class AtomicCheckpoint(BaseCallback):
 
     def save(self) -> Path:
         self.last = self.model.num_timesteps
-        state = {"episode_timesteps": self.episode_log.timesteps, "episode_rewards": self.episode_log.rewards,
-                 **eval_state(self.evaluation)}
+        state = {"total_timesteps": self.total_timesteps, "episode_timesteps": self.episode_log.timesteps,
+                 "episode_rewards": self.episode_log.rewards, **eval_state(self.evaluation)}
         return save_checkpoint(self.run_dir, self.model, state)

@@ -101,7 +101,8 @@ def evaluate(env: gym.Env, policies: Sequence[Policy], seeds: Sequence[int], *,
         rule_rmse = float(scores["rmse"][names.index("rule")])
         pred, gt = cxcywh_to_xywh(est), cxcywh_to_xywh(ep.truth)
         s_curve, p_curve = metrics.success_curve(pred, gt), metrics.precision_curve(pred, gt)
-        meta = {k: ep.meta[k] for k in ("sequence", "psi", "sigma_w", "sigma_xi", "sigma_rel", "tau") if k in ep.meta}
+        known = {**ep.meta, **ep.scenario}  # identifying metadata and the true scenario (for analysis)
+        meta = {k: known[k] for k in ("sequence", "psi", "sigma_w", "sigma_xi", "sigma_rel", "tau") if k in known}
         for j, name in enumerate(names):
             success[name] += s_curve[j] / len(seeds)
             precision[name] += p_curve[j] / len(seeds)

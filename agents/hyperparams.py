@@ -1,17 +1,25 @@
 """Hyperparameters per algorithm and env id, from YAML files in the RL Baselines3 Zoo layout.
 
-``agents/hyperparams/<algo>.yml`` maps env ids to settings; the ``default:`` entry applies to every env id and
-an env id's own entry overrides it key by key. Files are read with ``yaml.safe_load`` and nothing is ``eval``'d:
+``agents/hyperparams/<algo>.yml`` maps env ids to complete settings. As in the zoo, an env id's own entry is used
+as is and the ``default:`` entry serves any env id without one; files share settings through a YAML anchor and
+``<<:`` merge keys, which ``yaml.safe_load`` resolves. The zoo loads the shipped files unchanged
+(``python -m rl_zoo3.train --algo ppo --env bboxtune/FilterTune-v0 --gym-packages envs -conf
+agents/hyperparams/ppo.yml``, tested per file). The one setting only this loader reads, ``vec_env``, is a top-level
+key: the zoo looks up env ids only (its option is ``--vec-env``), while inside an entry it would pass the key to the
+algorithm's constructor. A file entry the zoo would reject is refused here too: it must hold ``n_timesteps`` and
+``policy``, no ``vec_env`` and no ``activation_fn`` name (the zoo needs a class there; name one in ``overrides``).
+Nothing is ``eval``'d: the string forms of ``policy_kwargs`` and ``normalize`` that the zoo ``eval``s are refused.
 
 | key                  | YAML form                                        | becomes                                      |
 |----------------------|--------------------------------------------------|----------------------------------------------|
 | ``n_timesteps``      | int                                              | default ``--timesteps`` of ``train.py``      |
 | ``n_envs``           | int                                              | default ``--n-envs``                         |
-| ``vec_env``          | ``dummy`` or ``subproc``                         | DummyVecEnv / SubprocVecEnv                  |
+| ``vec_env``          | ``dummy`` or ``subproc`` (top level or override) | DummyVecEnv / SubprocVecEnv                  |
 | ``normalize``        | bool or mapping of VecNormalize kwargs           | ``VecNormalize(**kwargs)`` (true: obs only)  |
 | ``policy``           | str (``MlpPolicy``)                              | policy                                       |
 | ``learning_rate``, ``clip_range`` | float or ``lin_<float>``            | constant, or linear decay to 0 (``LinearSchedule``) |
 | ``policy_kwargs``    | mapping; ``activation_fn: tanh|relu|elu|leaky_relu`` | the mapping, activation as a ``torch.nn`` class |
+|                      | (``activation_fn``: in overrides only)           |                                              |
 | ``train_freq``       | int or ``[n, step|episode]``                     | int / tuple                                  |
 | ``noise_type``, ``noise_std`` | ``normal`` and a float (TD3/SAC)        | ``NormalActionNoise`` on every action entry  |
 | anything else        | scalar                                           | keyword argument of the algorithm's constructor |
@@ -26,15 +34,17 @@ from typing import Any
 
 import numpy as np
 import torch.nn as nn
-import yaml
 from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.utils import LinearSchedule
 
+from agents import cli
 from agents.algos import algo_class
 
 HYPERPARAMS_DIR = Path(__file__).with_name("hyperparams")
 ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}
 VEC_ENVS = ("dummy", "subproc")
+FILE_KEYS = ("vec_env",)  # top-level settings of a file, read by this loader only
+ZOO_REQUIRED = ("n_timesteps", "policy")  # the zoo's KeyError / TypeError without them
 _SCHEDULED = ("learning_rate", "clip_range")
 
 
@@ -87,13 +97,28 @@ def _train_freq(value: Any, *, where: str) -> int | tuple[int, str]:
 
 
 def read_entry(path: Path, env_id: str) -> dict[str, Any]:
-    """The ``default:`` entry of ``path`` updated with the entry of ``env_id`` (if any)."""
-    data = yaml.safe_load(path.read_text()) or {}
-    if not isinstance(data, dict) or any(not isinstance(v, dict) for v in data.values()):
+    """The entry of ``env_id`` in ``path`` (else its ``default:`` entry), with the file's top-level ``vec_env``."""
+    data = cli.read_yaml(path) or {}
+    if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a mapping of env ids (and 'default') to mappings of settings")
-    if "default" not in data and env_id not in data:
-        raise ValueError(f"{path}: neither a 'default' entry nor one for {env_id!r}; entries: {sorted(data)}")
-    return {**data.get("default", {}), **data.get(env_id, {})}
+    bad = sorted(str(k) for k, v in data.items() if not isinstance(v, dict) and k not in FILE_KEYS)
+    if bad:
+        raise ValueError(f"{path}: top-level {bad} must map to settings; top-level settings allowed: {FILE_KEYS}")
+    if env_id not in data and "default" not in data:
+        raise ValueError(f"{path}: neither a 'default' entry nor one for {env_id!r}; entries: {sorted(map(str, data))}")
+    key = env_id if env_id in data else "default"
+    entry = dict(data[key])
+    where = f"{path} [{key}]"
+    missing = [k for k in ZOO_REQUIRED if k not in entry]
+    if missing:
+        raise ValueError(f"{where}: {missing} missing; every entry needs {ZOO_REQUIRED} (the zoo reads an entry as is)")
+    if "vec_env" in entry:
+        raise ValueError(f"{where}: vec_env inside an entry (the zoo would pass it to the algorithm); "
+                         "set it as a top-level key of the file")
+    if isinstance(entry.get("policy_kwargs"), dict) and "activation_fn" in entry["policy_kwargs"]:
+        raise ValueError(f"{where}: policy_kwargs.activation_fn in a file (the zoo needs a class there); "
+                         "pass it as an override, e.g. train.py --hyperparams 'policy_kwargs:{activation_fn: relu}'")
+    return {**entry, **{k: data[k] for k in FILE_KEYS if k in data}}
 
 
 def load_hyperparams(algo: str, env_id: str, overrides: dict[str, Any] | None = None,
@@ -104,7 +129,7 @@ def load_hyperparams(algo: str, env_id: str, overrides: dict[str, Any] | None = 
     raw = {**read_entry(path, env_id), **(overrides or {})}
     entry = dict(raw)
     where = f"{path} [{env_id}]"
-    n_timesteps = int(entry.pop("n_timesteps", 100_000))
+    n_timesteps = int(entry.pop("n_timesteps"))
     n_envs = int(entry.pop("n_envs", 1))
     vec_env = entry.pop("vec_env", "dummy")
     if vec_env not in VEC_ENVS:
@@ -116,7 +141,7 @@ def load_hyperparams(algo: str, env_id: str, overrides: dict[str, Any] | None = 
         normalize = {}
     elif not isinstance(normalize, dict):
         raise ValueError(f"{where}: normalize={normalize!r}; allowed: true, false or a mapping of VecNormalize kwargs")
-    policy = entry.pop("policy", "MlpPolicy")
+    policy = entry.pop("policy")
     if n_timesteps < 1 or n_envs < 1:
         raise ValueError(f"{where}: n_timesteps={n_timesteps}, n_envs={n_envs}; allowed: integers >= 1")
     noise_type, noise_std = entry.pop("noise_type", None), entry.pop("noise_std", None)

@@ -1,45 +1,53 @@
-"""Training-run directories: vectorised envs of a split, atomic checkpoints, and loading a trained tuner.
+"""Training-run directories: their config, the run lock, vectorised envs of a split, and loading a trained tuner.
 
-A run directory written by ``scripts/train.py`` holds::
+A run directory written by ``scripts/train.py`` holds only data files (nothing in it is unpickled or run)::
 
-    config.yml            every setting of the run (arguments, env kwargs, hyperparameters, versions)
+    config.yml            every setting of the run (arguments, env kwargs, hyperparameters, versions); never
+                          rewritten after the run starts (a resume appends its command line to command.txt)
     command.txt           the command line that started it (and each resume, appended)
-    model.zip             the final model;          vecnormalize.pkl       its VecNormalize statistics
-    best_model.zip        best on the val split;    best_vecnormalize.pkl  the statistics at that time
+    train.lock            the run lock (:class:`RunLock`), held by the train.py process writing the run
+    model.zip             the final model;          vecnormalize.json       its VecNormalize statistics
+    best_model.zip        best on the val split;    best_vecnormalize.json  the statistics at that time
     evaluations.npz       EvalCallback log (val split); eval_curve.csv the same as text
     train_log.csv         reward of every training episode;   learning_curve.png
-    checkpoints/latest    name of the newest complete checkpoint folder, checkpoints/ckpt_<timesteps>/
+    checkpoints/latest    name of the newest checkpoint folder, checkpoints/ckpt_<timesteps>/ (agents.checkpoints)
 
-A checkpoint folder is written under a temporary name and renamed when complete, then ``latest`` is
-replaced atomically (``os.replace``), so a run killed at any moment resumes from a complete checkpoint.
+Models are loaded by :func:`agents.safe_load.load_model` (no unpickling), statistics by
+:func:`agents.run_files.load_normalizer` (JSON; an old run's ``vecnormalize.pkl`` only with ``trust_pickle``).
+The model, statistics, checkpoints, config, logs and curves CSV are written atomically (temporary file or folder,
+then ``os.replace``); ``evaluations.npz`` (SB3's EvalCallback) and the PNG are written in place and are never
+read back.
 """
 
 from __future__ import annotations
 
-import argparse
-
-import json
+import fcntl
 import os
-import shutil
-from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
 import envs  # noqa: F401  (registers the env ids)
-from agents.algos import algo_class
+from agents.algos import ALGOS
 from agents.baselines import ObsPolicy
+from agents.cli import read_yaml
+from agents.hyperparams import load_hyperparams
+from agents.run_files import RunError, load_normalizer
+from agents.safe_load import load_model
 from agents.splits import SplitSeeds
 
-CHECKPOINTS = "checkpoints"
-LATEST = "latest"
+CONFIG = "config.yml"
+LOCK = "train.lock"
+MODEL_KEYS = {"algo": str, "env_id": str, "env_kwargs": dict, "hyperparams": dict, "seed": int}
+RESUME_KEYS = {**MODEL_KEYS, "total_timesteps": int, "eval_freq": int, "eval_episodes": int, "checkpoint_freq": int,
+               "tensorboard": bool}
+ENV_ERRORS = (gym.error.Error, ValueError, TypeError, KeyError, OSError)  # what a bad env id / env kwargs raise
 
 
 def make_env(env_id: str, env_kwargs: dict[str, Any], split: str = "test") -> gym.Env:
@@ -64,58 +72,108 @@ def _registered_make(env_id: str, **kwargs: Any) -> gym.Env:
     return gym.make(env_id, **kwargs)
 
 
-def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    write(tmp)
-    os.replace(tmp, path)
+def load_config(run_dir: Path, keys: dict[str, type] = MODEL_KEYS) -> dict[str, Any]:
+    """``run_dir/config.yml``, checked to hold ``keys`` with their types (counts >= 1, a known algorithm);
+    :class:`RunError` naming the file (and line, for YAML errors) otherwise."""
+    run_dir = Path(run_dir)
+    path = run_dir / CONFIG
+    if not run_dir.is_dir():
+        raise RunError(f"{run_dir} is not a folder" if run_dir.exists() else f"{run_dir} does not exist")
+    if not path.is_file():
+        raise RunError(f"{run_dir} is not a train.py run directory: no {CONFIG}")
+    try:
+        cfg = read_yaml(path)
+    except ValueError as err:
+        raise RunError(str(err)) from None
+    if not isinstance(cfg, dict):
+        raise RunError(f"{path}: expected a mapping of settings, got {type(cfg).__name__}")
+    for key, kind in keys.items():
+        value = cfg.get(key)
+        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+            raise RunError(f"{path}: {key}={value!r}; expected a {kind.__name__}")
+        if kind is int and key != "seed" and value < 1:
+            raise RunError(f"{path}: {key}={value!r}; allowed: integers >= 1")
+    if cfg["algo"] not in ALGOS:
+        raise RunError(f"{path}: algo={cfg['algo']!r}; allowed: {sorted(ALGOS)}")
+    return cfg
 
 
-def write_text_atomic(path: Path, text: str) -> None:
-    _atomic_write(path, lambda p: p.write_text(text))
+class RunLock:
+    """An exclusive ``flock`` on ``run_dir/train.lock`` (which holds the owner's pid), held from :meth:`acquire`
+    until :meth:`release` or the end of the process: the OS drops it when the process dies, even by kill -9,
+    so a killed run can be resumed at once while a running one cannot be written by a second process."""
+
+    def __init__(self, run_dir: Path) -> None:
+        self.path = Path(run_dir) / LOCK
+        self.fd: int | None = None
+
+    def acquire(self) -> RunLock:
+        try:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as err:
+            raise RunError(f"{self.path}: cannot create the run lock ({err.strerror or err})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
+            os.close(fd)
+            raise RunError(f"{self.path.parent} is in use by another train.py (pid {pid})") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        self.fd = fd
+        return self
+
+    def release(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)  # closing the only descriptor of the open file drops the flock
+            self.fd = None
+
+    def __enter__(self) -> RunLock:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
 
 
-def save_checkpoint(run_dir: Path, model: BaseAlgorithm, state: dict[str, Any], keep: int = 2) -> Path:
-    """Write ``checkpoints/ckpt_<num_timesteps>/`` (model, VecNormalize, replay buffer of off-policy
-    algorithms, ``state.json``) under a temporary name, rename it, point ``latest`` at it, and delete all
-    but the ``keep`` newest checkpoints. Returns the checkpoint folder."""
-    root = Path(run_dir) / CHECKPOINTS
-    root.mkdir(parents=True, exist_ok=True)
-    name = f"ckpt_{model.num_timesteps:012d}"
-    final, tmp = root / name, root / (name + ".tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
-    model.save(tmp / "model.zip")
-    venv = model.get_vec_normalize_env()
-    if venv is not None:
-        venv.save(tmp / "vecnormalize.pkl")
-    if hasattr(model, "replay_buffer") and model.replay_buffer is not None:
-        model.save_replay_buffer(tmp / "replay_buffer.pkl")
-    (tmp / "state.json").write_text(json.dumps({"num_timesteps": int(model.num_timesteps), **state}))
-    shutil.rmtree(final, ignore_errors=True)
-    os.replace(tmp, final)
-    write_text_atomic(root / LATEST, name)
-    for old in sorted(p for p in root.glob("ckpt_*") if p.is_dir() and not p.name.endswith(".tmp"))[:-keep]:
-        if old != final:
-            shutil.rmtree(old, ignore_errors=True)
-    return final
+def _contents(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir() if p.name != LOCK) if folder.is_dir() else []
 
 
-def latest_checkpoint(run_dir: Path) -> Path | None:
-    """The newest complete checkpoint folder of ``run_dir`` (None if there is none)."""
-    pointer = Path(run_dir) / CHECKPOINTS / LATEST
-    if not pointer.exists():
-        return None
-    folder = pointer.parent / pointer.read_text().strip()
-    if not (folder / "model.zip").exists():
-        raise ValueError(f"{pointer} names {folder.name}, which has no model.zip")
-    return folder
+def check_free(run_dir: Path, hint: str = "choose another --out or --resume it") -> None:
+    """:class:`RunError` unless the output folder ``run_dir`` is absent or empty (a lone lock file counts as
+    empty): nothing already there is overwritten."""
+    run_dir = Path(run_dir)
+    if run_dir.exists() and not run_dir.is_dir():
+        raise RunError(f"--out {run_dir} exists and is not a folder")
+    if _contents(run_dir):
+        raise RunError(f"--out {run_dir} exists and is not empty; {hint}")
 
 
-def load_config(run_dir: Path) -> dict[str, Any]:
-    path = Path(run_dir) / "config.yml"
-    if not path.exists():
-        raise ValueError(f"{run_dir} is not a train.py run directory: no config.yml")
-    return yaml.safe_load(path.read_text())
+def claim_run_dir(run_dir: Path) -> RunLock:
+    """Create ``run_dir`` (or take an empty one) and lock it; :class:`RunError` if it is not empty (checked again
+    under the lock, so of two processes racing for one folder exactly one gets it) or in use."""
+    run_dir = Path(run_dir)
+    check_free(run_dir)
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise RunError(f"--out {run_dir} cannot be created ({err.strerror or err})") from None
+    lock = RunLock(run_dir).acquire()
+    try:
+        check_free(run_dir)
+    except RunError:
+        lock.release()
+        raise
+    return lock
+
+
+def env_spaces_venv(cfg: dict[str, Any], where: Path) -> VecEnv:
+    """One env of the run's ``env_id`` / ``env_kwargs`` in a DummyVecEnv (for spaces and statistics);
+    :class:`RunError` naming ``where`` (the config file) if it cannot be built."""
+    try:
+        return DummyVecEnv([lambda: gym.make(cfg["env_id"], **cfg["env_kwargs"])])
+    except ENV_ERRORS as err:
+        raise RunError(f"{where}: env {cfg['env_id']} with env_kwargs {cfg['env_kwargs']} cannot be built ({err})") from None
 
 
 class SB3Policy(ObsPolicy):
@@ -134,8 +192,11 @@ class SB3Policy(ObsPolicy):
         return np.asarray(actions, dtype=np.float64).reshape(len(obs), -1)
 
     @classmethod
-    def load(cls, run_dir: Path, which: str = "final") -> SB3Policy:
-        """The ``"final"`` (``model.zip``) or ``"best"`` (``best_model.zip``, best on the val split) tuner."""
+    def load(cls, run_dir: Path, which: str = "final", *, trust_pickle: bool = False) -> SB3Policy:
+        """The ``"final"`` (``model.zip``) or ``"best"`` (``best_model.zip``, best on the val split) tuner of a run,
+        loaded without unpickling (``trust_pickle``: accept an old run's ``vecnormalize.pkl``, see
+        :func:`agents.run_files.load_normalizer`); :class:`RunError` naming the file that is missing, unreadable
+        or inconsistent with ``config.yml``."""
         if which not in ("final", "best"):
             raise ValueError(f"which={which!r}; allowed: 'final', 'best'")
         run_dir = Path(run_dir)
@@ -143,23 +204,17 @@ class SB3Policy(ObsPolicy):
         prefix = "" if which == "final" else "best_"
         model_path = run_dir / f"{prefix}model.zip"
         if not model_path.exists():
-            raise ValueError(f"{model_path} not found (is the run finished? resume it with train.py --resume {run_dir})")
-        model = algo_class(cfg["algo"]).load(model_path, device="cpu")
-        norm_path = run_dir / f"{prefix}vecnormalize.pkl"
-        normalizer = None
-        if norm_path.exists():
-            dummy = DummyVecEnv([lambda: gym.make(cfg["env_id"], **cfg["env_kwargs"])])
-            normalizer = VecNormalize.load(str(norm_path), dummy)
+            raise RunError(f"{model_path} not found (is the run finished? resume it with train.py --resume {run_dir})")
+        venv = env_spaces_venv(cfg, run_dir / CONFIG)
+        model = load_model(model_path, cfg, venv)
+        normalizer = load_normalizer(run_dir, venv, prefix=prefix, trust_pickle=trust_pickle)
+        try:
+            normalize = load_hyperparams(cfg["algo"], cfg["env_id"], cfg["hyperparams"]).normalize
+        except ValueError as err:
+            raise RunError(f"{run_dir / CONFIG}: hyperparams: {err}") from None
+        if normalize and normalizer is None:
+            raise RunError(f"{run_dir / (prefix + 'vecnormalize.json')} not found, but config.yml's hyperparams normalise "
+                           "observations")
+        if normalizer is not None:
             normalizer.training, normalizer.norm_reward = False, False
         return cls(model, normalizer, name=cfg["algo"])
-
-
-class HelpFormatter(argparse.RawDescriptionHelpFormatter):
-    """Shows the module docstring as written and appends real defaults (not None/False/empty) to the help."""
-
-    def _get_help_string(self, action: argparse.Action) -> str:
-        default = action.default
-        shown = not (default is None or default is False or default == [] or default == argparse.SUPPRESS)
-        if action.help and shown and "%(default)" not in action.help:
-            return action.help + " (default: %(default)s)"
-        return action.help or ""

@@ -13,7 +13,8 @@ The horizon is mapped on an absolute log scale rather than as a multiplier on th
 own N_opt is computed from nominal σ that can be off by a decade, so a multiplier would tie the reachable
 range to a possibly wrong centre; log N_opt is in the observation instead, so a policy can still learn a
 residual on it. Entries with |a| ≤ 1 + 1e-6 are accepted (the excess is clipped: float32 round-off);
-anything further out, NaN or ±inf raises ``ValueError``.
+anything further out, NaN or ±inf raises ``ValueError``; so does a wrong shape (an env step takes exactly
+(d,), ``score`` a batch (A, d) with A >= 1); a non-numeric or bool dtype raises ``TypeError``.
 """
 
 from __future__ import annotations
@@ -83,17 +84,36 @@ class ActionMap:
         return len(self.tune)
 
     def check(self, actions: np.ndarray) -> np.ndarray:
-        """Validate actions shaped (d,) or (A, d); returns float64 (A, d)."""
-        a = np.asarray(actions, dtype=np.float64)
+        """Validate actions shaped (d,) or (A, d) with A >= 1: real numbers (not bool), finite, within
+        [-1, 1] (see the module docstring for the 1e-6 float32 tolerance); returns float64 (A, d)."""
+        try:
+            raw = np.asarray(actions)
+        except (ValueError, TypeError) as err:  # ragged nesting and the like
+            raise ValueError(f"action {actions!r} is not an array of numbers ({err})") from None
+        if raw.dtype.kind not in "iuf":
+            raise TypeError(f"action has dtype {raw.dtype}; allowed: real numbers (float or integer)")
+        a = raw.astype(np.float64)
         a2 = a.reshape(1, -1) if a.ndim == 1 else a
-        if a2.ndim != 2 or a2.shape[1] != self.dim:
-            raise ValueError(f"action has shape {a.shape}; allowed ({self.dim},) or (A, {self.dim}) for tune={self.tune}")
+        if a2.ndim != 2 or a2.shape[1] != self.dim or a2.shape[0] == 0:
+            raise ValueError(f"action has shape {a.shape}; allowed ({self.dim},) or (A, {self.dim}) with A >= 1 "
+                             f"for tune={self.tune}")
         if not (np.abs(a2) <= 1 + _TOLERANCE).all():  # NaN and ±inf fail this too
             if not np.isfinite(a2).all():
                 raise ValueError(f"action {a.tolist() if a.size <= 8 else a.shape} contains NaN or inf; allowed finite values in [-1, 1]")
             worst = float(a2.flat[np.argmax(np.abs(a2))])
             raise ValueError(f"action entry {worst} is out of range: allowed [-1, 1]")
         return np.minimum(np.maximum(a2, -1.0), 1.0)
+
+    def check_one(self, action: np.ndarray) -> np.ndarray:
+        """Validate one action: shape exactly (d,) (a batch is refused), otherwise as :meth:`check`; returns (1, d)."""
+        try:
+            shape = np.shape(action)
+        except (ValueError, TypeError):  # ragged nesting
+            shape = None
+        if shape != (self.dim,):
+            raise ValueError(f"action has shape {shape}; allowed ({self.dim},), one action for tune={self.tune} "
+                             "(score() takes batches)")
+        return self.check(action)
 
     def to_params(self, actions: np.ndarray, nominal: Nominal) -> dict[str, np.ndarray]:
         """Actions (d,) or (A, d) → {name: array (A,)} for every parameter in ``TUNABLE``

@@ -1,9 +1,21 @@
-"""Configuration of the bboxtune environments: one frozen dataclass, keyword arguments of ``gym.make``."""
+"""Configuration of the bboxtune environments: one frozen dataclass, keyword arguments of ``gym.make``.
+
+Every field is checked on construction, type first, then range: a wrong type raises ``TypeError`` and a value
+out of range ``ValueError``, both naming the field and what is allowed (``track_length="100"`` is a type
+error, not a conversion; integers must be ``int`` or a numpy integer, ``bool`` is not one; ranges are
+(low, high) pairs of real numbers). The allowed ranges are the comments below; they keep every simulated
+quantity finite and physically plausible (see ``TRACK_LENGTH_MAX``).
+"""
 
 from __future__ import annotations
 
+import math
+import os
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from typing import Any
+
+import numpy as np
 
 import filters
 from envs.actions import ACCEPTS, DEFAULT_TUNE
@@ -11,75 +23,160 @@ from envs.actions import ACCEPTS, DEFAULT_TUNE
 SOURCES = ("sim", "otb", "otb_tracker", "video")
 SPLITS = ("train", "val", "test")
 REWARDS = ("rmse", "iou_precision", "success_auc")
+# Longest track (frames). Simulated box sizes are reflected at ``box_size_bounds`` (envs.simulate), so they
+# stay plausible at any length; the bound keeps a track's memory and filter time moderate (a 100,000-frame
+# episode: 3.2 MB per (T, 4) array; reset + step ~0.8 s with ufir_cmn, ~2 s with kf_cmn or ukf on a 2-core
+# machine) and centre excursions well resolved in float64 (default ranges: at most 3.3e7 px from the start
+# over 200 such episodes, where float64 resolves 1e-8 px).
+TRACK_LENGTH_MAX = 100_000
+
+
+def check_integer(name: str, value: Any, low: int, high: int) -> int:
+    """``value`` as an int if it is an integer (not a bool) in [low, high]; else TypeError / ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}={value!r} has type {type(value).__name__}; allowed: an integer in [{low}, {high}]")
+    if not low <= value <= high:
+        raise ValueError(f"{name}={value!r} is out of range; allowed: an integer in [{low}, {high}]")
+    return int(value)
+
+
+def check_real(name: str, value: Any, low: float, high: float, *, open_low: bool = False) -> float:
+    """``value`` as a float if it is a real number in [low, high] (or (low, high] with ``open_low``)."""
+    interval = f"{'(' if open_low else '['}{low:g}, {high:g}]"
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name}={value!r} has type {type(value).__name__}; allowed: a real number in {interval}")
+    try:
+        v = float(value)
+    except OverflowError:  # an int beyond float range
+        v = math.inf
+    if not (math.isfinite(v) and (low < v if open_low else low <= v) and v <= high):
+        raise ValueError(f"{name}={value!r} is out of range; allowed: a real number in {interval}")
+    return v
+
+
+def check_range(name: str, value: Any, low: float, high: float, *, open_low: bool = False) -> tuple[float, float]:
+    """A (low, high) pair of reals within [low, high] (``open_low``: low excluded) with pair[0] <= pair[1]."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) or len(value) != 2:
+        raise TypeError(f"{name}={value!r}; allowed: a (low, high) pair of real numbers")
+    lo, hi = (check_real(f"{name}[{i}]", v, low, high, open_low=open_low) for i, v in enumerate(value))
+    if lo > hi:
+        raise ValueError(f"{name}={value!r}; allowed: low <= high")
+    return lo, hi
+
+
+def check_choice(name: str, value: Any, allowed: Sequence[str]) -> str:
+    """``value`` if it is one of the strings ``allowed``."""
+    if not isinstance(value, str):
+        raise TypeError(f"{name}={value!r} has type {type(value).__name__}; allowed: one of {tuple(allowed)}")
+    if value not in allowed:
+        raise ValueError(f"{name}={value!r}; allowed: one of {tuple(allowed)}")
+    return value
+
+
+def _optional_path(name: str, value: Any) -> str | None:
+    if value is None:
+        return None
+    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
+        raise TypeError(f"{name}={value!r}; allowed: None or a non-empty path (str or os.PathLike)")
+    return os.fspath(value)
+
+
+def _tune(backend: str, value: Any) -> tuple[str, ...]:
+    if value is None:
+        return DEFAULT_TUNE[backend]
+    if isinstance(value, str) or not isinstance(value, (Sequence, np.ndarray)) or not all(isinstance(p, str) for p in value):
+        raise TypeError(f"tune={value!r}; allowed: None or a sequence of names from {ACCEPTS[backend]}")
+    tune = tuple(value)
+    if not tune or len(set(tune)) != len(tune) or any(p not in ACCEPTS[backend] for p in tune):
+        raise ValueError(f"tune={tune!r} for backend {backend!r}; allowed: distinct names from {ACCEPTS[backend]}")
+    return tune
 
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """Every argument of ``bboxtune/FilterTune-v0`` and ``bboxtune/FilterRetune-v0`` (units in comments)."""
+    """Every argument of ``bboxtune/FilterTune-v0`` and ``bboxtune/FilterRetune-v0`` (units, allowed values)."""
 
     source: str = "sim"  # "sim" | "otb" (GT + synthetic CMN) | "otb_tracker" (real tracker output) | "video"
     backend: str = "ufir_cmn"  # any name in filters.NAMES
     reward: str = "rmse"  # "rmse": log(RMSE_rule / RMSE); "iou_precision" / "success_auc": difference to the rule
     tune: tuple[str, ...] | None = None  # parameters the agent sets; None -> envs.actions.DEFAULT_TUNE[backend]
-    track_length: int = 500  # frames per simulated track
+    track_length: int = 500  # frames per simulated track / video, integer in [8, TRACK_LENGTH_MAX]
     # sim scenario distribution ((low, high); log-uniform for σ, uniform otherwise)
-    psi_range: tuple[float, float] = (0.0, 0.95)
-    sigma_w_range: tuple[float, float] = (1.0, 100.0)  # px/s², acceleration noise std of cx, cy
-    sigma_xi_range: tuple[float, float] = (0.5, 10.0)  # px, std of the white noise ξ driving the CMN
-    tau_range: tuple[float, float] = (1 / 30, 0.1)  # s, frame interval
-    box_size_range: tuple[float, float] = (20.0, 200.0)  # px, initial w and h
+    psi_range: tuple[float, float] = (0.0, 0.95)  # within [0, 0.99]
+    sigma_w_range: tuple[float, float] = (1.0, 100.0)  # px/s², acceleration noise std of cx, cy; within [1e-3, 1e4]
+    sigma_xi_range: tuple[float, float] = (0.5, 10.0)  # px, std of the white noise ξ driving the CMN; within [1e-3, 1e3]
+    tau_range: tuple[float, float] = (1 / 30, 0.1)  # s, frame interval; within [1e-3, 1]
+    box_size_range: tuple[float, float] = (20.0, 200.0)  # px, initial w and h; within box_size_bounds
+    box_size_bounds: tuple[float, float] = (4.0, 1000.0)  # px, simulated w and h are reflected here; within [1, 1e5]
     # OTB sources
     otb_root: str | None = None  # folder of the OTB data; None -> $OTB_ROOT
     split: str = "train"  # "train" | "val" | "test": which sequences episodes are drawn from
-    tracker: str = "SiamFC"  # source "otb_tracker": whose output is the measurement
-    otb_tau: float = 1 / 30  # s, OTB frame interval (30 fps)
-    cmn_rel_range: tuple[float, float] = (0.01, 0.1)  # source "otb": σ_ξ relative to the box size, log-uniform
-    otb_sigma_v_rel: float = 0.03  # nominal σ_v relative to the measured box scale (OTB sources)
-    otb_sigma_w_rel: float = 3.0  # 1/s², nominal σ_w relative to the measured box scale (OTB sources)
+    tracker: str = "SiamFC"  # source "otb_tracker": whose output is the measurement (a non-empty name)
+    otb_tau: float = 1 / 30  # s, OTB frame interval (30 fps); in [1e-3, 1]
+    cmn_rel_range: tuple[float, float] = (0.01, 0.1)  # source "otb": σ_ξ relative to the box size, log-uniform; within [1e-4, 1]
+    otb_sigma_v_rel: float = 0.03  # nominal σ_v relative to the measured box scale (OTB sources); in (0, 10]
+    otb_sigma_w_rel: float = 3.0  # 1/s², nominal σ_w relative to the measured box scale (OTB sources); in (0, 1e4]
     # source "video": synthetic videos measured by a real detector (envs.video.source.VideoSource)
     detector: str = "template"  # one of envs.video.detectors.DETECTORS
-    video_pool: int = 64  # distinct videos per split
+    video_pool: int = 64  # distinct videos per split, integer in [1, 1e6]
     video_cache: str | None = None  # folder caching rendered + detected videos; None: memory only
-    video_size: tuple[int, int] = (320, 240)  # px, frame width and height
-    video_sigma_v_rel: float | None = None  # nominal σ_v / box scale; None: the detector's calibrated value
-    video_sigma_w_rel: float | None = None  # 1/s², nominal σ_w / box scale; None: calibrated value
+    video_size: tuple[int, int] = (320, 240)  # px, frame width and height, integers in [64, 4096]
+    video_sigma_v_rel: float | None = None  # nominal σ_v / box scale in (0, 10]; None: the detector's calibrated value
+    video_sigma_w_rel: float | None = None  # 1/s², nominal σ_w / box scale in (0, 1e4]; None: calibrated value
     # action mapping
-    horizon_max: int = 400  # frames, largest FIR horizon the agent can choose
-    sigma_decades: float = 1.5  # σ scales span nominal · 10^[-D, D]
-    nominal_psi: float = 0.0  # ψ the fixed rule assumes (the white-noise rule of the literature)
+    horizon_max: int = 400  # frames, largest FIR horizon the agent can choose, integer in [2, 10000]
+    sigma_decades: float = 1.5  # σ scales span nominal · 10^[-D, D], D in (0, 3]
+    nominal_psi: float = 0.0  # ψ the fixed rule assumes (the white-noise rule of the literature); in [0, 0.99]
     # FilterRetune-v0
-    window: int = 50  # frames per re-tuning step
-    history: int = 100  # frames of past measurements the re-tuning observation summarises
+    window: int = 50  # frames per re-tuning step, integer in [8, TRACK_LENGTH_MAX // 2]
+    history: int = 100  # frames of past measurements the re-tuning observation summarises, in [8, TRACK_LENGTH_MAX]
 
     def __post_init__(self) -> None:
-        if self.source not in SOURCES:
-            raise ValueError(f"source={self.source!r}; allowed: {SOURCES}")
-        if self.backend not in filters.NAMES:
-            raise ValueError(f"backend={self.backend!r}; allowed: {filters.NAMES}")
-        if self.reward not in REWARDS:
-            raise ValueError(f"reward={self.reward!r}; allowed: {REWARDS}")
-        if self.split not in SPLITS:
-            raise ValueError(f"split={self.split!r}; allowed: {SPLITS}")
-        tune = DEFAULT_TUNE[self.backend] if self.tune is None else tuple(self.tune)
-        bad = [p for p in tune if p not in ACCEPTS[self.backend]]
-        if bad or not tune or len(set(tune)) != len(tune):
-            raise ValueError(f"tune={tune!r} for backend {self.backend!r}; allowed: distinct names from {ACCEPTS[self.backend]}")
-        object.__setattr__(self, "tune", tune)
-        for name in ("track_length", "window", "history"):
-            if int(getattr(self, name)) < 8:
-                raise ValueError(f"{name}={getattr(self, name)!r}; allowed: integers >= 8")
-        for name in ("psi_range", "sigma_w_range", "sigma_xi_range", "tau_range", "box_size_range", "cmn_rel_range"):
-            lo, hi = getattr(self, name)
-            if not (0 <= lo <= hi) or (name != "psi_range" and lo <= 0):
-                raise ValueError(f"{name}={(lo, hi)!r}; allowed: 0 < low <= high (0 <= low for psi)")
-        if self.psi_range[1] >= 1 or not 0 <= self.nominal_psi < 1:
-            raise ValueError(f"psi_range={self.psi_range!r}, nominal_psi={self.nominal_psi!r}; allowed within [0, 1)")
-        if self.source == "video":
-            from envs.video.source import VideoSettings
+        put = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731 (frozen: normalised values)
+        put("source", check_choice("source", self.source, SOURCES))
+        put("backend", check_choice("backend", self.backend, filters.NAMES))
+        put("reward", check_choice("reward", self.reward, REWARDS))
+        put("split", check_choice("split", self.split, SPLITS))
+        put("tune", _tune(self.backend, self.tune))
+        put("track_length", check_integer("track_length", self.track_length, 8, TRACK_LENGTH_MAX))
+        put("window", check_integer("window", self.window, 8, TRACK_LENGTH_MAX // 2))
+        put("history", check_integer("history", self.history, 8, TRACK_LENGTH_MAX))
+        put("horizon_max", check_integer("horizon_max", self.horizon_max, 2, 10_000))
+        put("video_pool", check_integer("video_pool", self.video_pool, 1, 1_000_000))
+        put("psi_range", check_range("psi_range", self.psi_range, 0.0, 0.99))
+        put("sigma_w_range", check_range("sigma_w_range", self.sigma_w_range, 1e-3, 1e4))
+        put("sigma_xi_range", check_range("sigma_xi_range", self.sigma_xi_range, 1e-3, 1e3))
+        put("tau_range", check_range("tau_range", self.tau_range, 1e-3, 1.0))
+        put("box_size_bounds", check_range("box_size_bounds", self.box_size_bounds, 1.0, 1e5))
+        lo, hi = self.box_size_bounds
+        if not lo < hi:
+            raise ValueError(f"box_size_bounds={self.box_size_bounds!r}; allowed: low < high")
+        put("box_size_range", check_range("box_size_range", self.box_size_range, 0.0, math.inf))
+        if not lo <= self.box_size_range[0] <= self.box_size_range[1] <= hi:
+            raise ValueError(f"box_size_range={self.box_size_range!r} must lie within box_size_bounds={self.box_size_bounds!r}")
+        put("cmn_rel_range", check_range("cmn_rel_range", self.cmn_rel_range, 1e-4, 1.0))
+        put("otb_tau", check_real("otb_tau", self.otb_tau, 1e-3, 1.0))
+        put("otb_sigma_v_rel", check_real("otb_sigma_v_rel", self.otb_sigma_v_rel, 0.0, 10.0, open_low=True))
+        put("otb_sigma_w_rel", check_real("otb_sigma_w_rel", self.otb_sigma_w_rel, 0.0, 1e4, open_low=True))
+        put("sigma_decades", check_real("sigma_decades", self.sigma_decades, 0.0, 3.0, open_low=True))
+        put("nominal_psi", check_real("nominal_psi", self.nominal_psi, 0.0, 0.99))
+        put("otb_root", _optional_path("otb_root", self.otb_root))
+        put("video_cache", _optional_path("video_cache", self.video_cache))
+        if not isinstance(self.tracker, str) or not self.tracker:
+            raise TypeError(f"tracker={self.tracker!r}; allowed: a non-empty tracker name (str)")
+        self._check_video_fields()
 
-            VideoSettings.from_config(self)  # validates the video fields
-        if self.horizon_max < 2 or self.horizon_max > 10_000:
-            raise ValueError(f"horizon_max={self.horizon_max!r}; allowed: 2 <= horizon_max <= 10000")
+    def _check_video_fields(self) -> None:
+        from envs.video.detectors import DETECTORS
+
+        object.__setattr__(self, "detector", check_choice("detector", self.detector, DETECTORS))
+        size = self.video_size
+        if isinstance(size, (str, bytes)) or not isinstance(size, (Sequence, np.ndarray)) or len(size) != 2:
+            raise TypeError(f"video_size={size!r}; allowed: a (width, height) pair of integers in [64, 4096]")
+        object.__setattr__(self, "video_size", tuple(check_integer(f"video_size[{i}]", v, 64, 4096) for i, v in enumerate(size)))
+        for name, high in (("video_sigma_v_rel", 10.0), ("video_sigma_w_rel", 1e4)):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, check_real(name, getattr(self, name), 0.0, high, open_low=True))
 
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
@@ -88,9 +185,4 @@ class EnvConfig:
         unknown = sorted(set(kwargs) - known)
         if unknown:
             raise TypeError(f"unknown env argument(s) {unknown}; allowed: {sorted(known)}")
-        for key in ("tune", "video_size", "psi_range", "sigma_w_range", "sigma_xi_range", "tau_range", "box_size_range", "cmn_rel_range"):
-            if key in kwargs and kwargs[key] is not None:
-                kwargs[key] = tuple(kwargs[key])
         return cls(**kwargs)
-
-

@@ -4,7 +4,9 @@ Layouts (auto-detected by :class:`OTBDataset` from ``root``, else ``$OTB_ROOT``)
 
 * ``"shared"`` — this project's layout (``shared/data/otb``): ``groundtruth/<Seq>.txt``, ``sequences.csv``
   (sequence, image_folder, n_frames, first_frame, …), ``attributes.csv`` (0/1 flags), optional
-  ``trackers/<Tracker>/<Seq>.txt``.
+  ``trackers/<Tracker>/<Seq>.txt``. A table row repeating a sequence or naming one without a ground-truth
+  file is an error naming the table and line; a folder, pipe or device where a file is expected is an error
+  naming it.
 * ``"folders"`` — the download from the OTB site: ``<Seq>/groundtruth_rect.txt``; two-target videos have
   ``groundtruth_rect.1.txt`` / ``.2.txt`` and become ``<Seq>-1`` / ``<Seq>-2`` (Jogging, Skating2, Human4 → only
   ``Human4-2``). Frame numbers follow the OTB toolkit: BlurCar1 starts at image 247, BlurCar3 at 3, BlurCar4 at
@@ -36,7 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from envs.boxes import xywh_to_cxcywh
-from envs.otb_io import csv_int, read_boxes, read_csv_table, read_pysot_json
+from envs.otb_io import csv_int, read_boxes, read_csv_table, read_pysot_json, video_of
 from envs.simulate import Track, gauss_markov
 
 logger = logging.getLogger(__name__)
@@ -76,11 +78,6 @@ def resolve_root(root: str | os.PathLike | None) -> Path:
     return path
 
 
-def video_of(name: str) -> str:
-    """The video a target belongs to: ``"Jogging-2"`` → ``"Jogging"``, ``"Car4"`` → ``"Car4"``."""
-    return re.sub(r"-\d+$", "", name)
-
-
 def split(names: Iterable[str]) -> dict[str, tuple[str, ...]]:
     """Deterministic train / val / test split by video (never by window or by target of one video).
 
@@ -114,21 +111,21 @@ class OTBDataset:
         self.root = resolve_root(root)
         self._cache: dict[str, OTBSequence] = {}
         self._meta: dict[str, dict] = {}
-        if self.root.is_file() or (self.root / "OTB100.json").is_file():
+        if not self.root.is_dir() or (self.root / "OTB100.json").exists():
             self.layout = "pysot"
-            self._load_pysot(self.root if self.root.is_file() else self.root / "OTB100.json")
-        elif (self.root / "groundtruth").is_dir():
+            self._load_pysot(self.root / "OTB100.json" if self.root.is_dir() else self.root)
+        elif (self.root / "groundtruth").exists():
             self.layout = "shared"
             self._load_shared()
         else:
             self.layout = "folders"
             self._load_folders()
         self.names: tuple[str, ...] = tuple(sorted(self._meta))
-        base = self.root.parent if self.root.is_file() else self.root
+        base = self.root if self.root.is_dir() else self.root.parent
         self.trackers_root = Path(trackers_root) if trackers_root is not None else base / "trackers"
-        if trackers_root is not None and not self.trackers_root.is_dir():
-            raise ValueError(f"trackers_root {str(self.trackers_root)!r} is not a folder")
         found = self.trackers_root.is_dir()
+        if not found and (trackers_root is not None or self.trackers_root.exists()):
+            raise ValueError(f"trackers_root {str(self.trackers_root)!r} is not a folder")
         self.trackers: tuple[str, ...] = tuple(
             sorted(p.name for p in self.trackers_root.iterdir() if p.is_dir()) if found else ()
         )
@@ -137,45 +134,55 @@ class OTBDataset:
     # --- layouts -------------------------------------------------------------------------------------------
     def _load_shared(self) -> None:
         gt_dir = self.root / "groundtruth"
+        if not gt_dir.is_dir():
+            raise ValueError(f"{gt_dir}: is not a folder (expected groundtruth/<Sequence>.txt files)")
         files = {p.stem: p for p in sorted(gt_dir.glob("*.txt"))}
         if not files:
             raise ValueError(f"{gt_dir}: no <Sequence>.txt ground-truth files")
+        for path in files.values():
+            if not path.is_file():
+                raise ValueError(f"{path}: is not a regular file (expected a ground-truth text file)")
         table = self.root / "sequences.csv"
-        rows = read_csv_table(table, ("sequence", "n_frames", "first_frame")) if table.is_file() else []
-        info = {}
-        for line, row in enumerate(rows, start=2):
-            info[row["sequence"]] = (
-                row.get("image_folder") or video_of(row["sequence"]),
-                csv_int(row, "n_frames", table, line, low=1),
-                csv_int(row, "first_frame", table, line, low=1),
-            )
-        for line, row in enumerate(rows, start=2):
-            if row["sequence"] not in files:
-                missing = gt_dir / f"{row['sequence']}.txt"
-                raise ValueError(f"{table}:{line}: sequence {row['sequence']!r} has no ground-truth file {missing}")
-        attributes = self._read_attributes(self.root / "attributes.csv")
+        info: dict[str, tuple[str, int, int]] = {}
+        first_line: dict[str, int] = {}
+        for line, row in read_csv_table(table, ("sequence", "n_frames", "first_frame")) if table.exists() else []:
+            name = row["sequence"]
+            if name in first_line:
+                raise ValueError(f"{table}:{line}: duplicate row for sequence {name!r} (first at line "
+                                 f"{first_line[name]})")
+            if name not in files:
+                raise ValueError(f"{table}:{line}: sequence {name!r} has no ground-truth file <name>.txt in {gt_dir}")
+            first_line[name] = line
+            info[name] = (row.get("image_folder") or video_of(name), csv_int(row, "n_frames", table, line, low=1),
+                          csv_int(row, "first_frame", table, line, low=1))
+        attributes = self._read_attributes(self.root / "attributes.csv", set(files))
         for name, path in files.items():
             video, n_frames, first = info.get(name, (video_of(name), None, 1))
             self._meta[name] = {"path": path, "n_expected": n_frames, "video": video, "first_frame": first,
                                 "attributes": attributes.get(name, frozenset())}
 
     @staticmethod
-    def _read_attributes(path: Path) -> dict[str, frozenset[str]]:
-        if not path.is_file():
+    def _read_attributes(path: Path, names: set[str]) -> dict[str, frozenset[str]]:
+        """Flags per sequence from ``attributes.csv`` (if present); every row names a known sequence once."""
+        if not path.exists():
             return {}
-        out = {}
-        for line, row in enumerate(read_csv_table(path, ("sequence",)), start=2):
+        out: dict[str, frozenset[str]] = {}
+        for line, row in read_csv_table(path, ("sequence",)):
+            name = row["sequence"]
+            if name in out or name not in names:
+                problem = "a second row for" if name in out else "no ground-truth file for"
+                raise ValueError(f"{path}:{line}: {problem} sequence {name!r}")
             flags = [a for a in ATTRIBUTES if a in row]
             bad = [a for a in flags if row[a] not in ("0", "1")]
             if bad:
                 raise ValueError(f"{path}:{line}: attribute {bad[0]}={row[bad[0]]!r}; allowed 0 or 1")
-            out[row["sequence"]] = frozenset(a for a in flags if row[a] == "1")
+            out[name] = frozenset(a for a in flags if row[a] == "1")
         return out
 
     def _load_folders(self) -> None:
         for folder in sorted(p for p in self.root.iterdir() if p.is_dir()):
             for path in sorted(folder.glob("groundtruth_rect*.txt")):
-                match = re.fullmatch(r"groundtruth_rect(?:\.(\d+))?\.txt", path.name)
+                match = re.fullmatch(r"groundtruth_rect(?:\.([0-9]+))?\.txt", path.name)  # linear: no nesting
                 if match is None:
                     continue
                 name = folder.name if match.group(1) is None else f"{folder.name}-{match.group(1)}"
@@ -220,7 +227,12 @@ class OTBDataset:
         if tracker not in self.trackers:
             raise ValueError(f"unknown tracker {tracker!r}; found {list(self.trackers)} in {self.trackers_root}")
         if tracker not in self._tracker_files:
-            listing = {_normalise(p.stem): p for p in sorted((self.trackers_root / tracker).glob("*.txt"))}
+            listing: dict[str, Path] = {}
+            for path in sorted((self.trackers_root / tracker).glob("*.txt")):
+                if _normalise(path.stem) in listing:
+                    raise ValueError(f"{path}: same sequence as {listing[_normalise(path.stem)].name} (names "
+                                     "match ignoring case and '_' vs '-'); keep one file per sequence")
+                listing[_normalise(path.stem)] = path
             self._tracker_files[tracker] = {
                 n: listing[_normalise(n)] for n in self.names if _normalise(n) in listing
             }

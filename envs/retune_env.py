@@ -11,7 +11,7 @@ from envs.actions import ACCEPTS
 from envs.config import EnvConfig
 from envs.features import measurement_features
 from envs.scoring import SCORE_KEYS, box_model, reward_from, run_positions, score_estimates
-from envs.track_env import TrackEnv
+from envs.track_env import TrackEnv, check_reset_args
 from filters.fir_core import FIRFilter
 
 
@@ -32,7 +32,9 @@ class FilterRetuneEnv(TrackEnv):
       usual start-up rule (growing horizon) apply.
 
     ## Action Space
-    As FilterTune-v0: ``Box(-1, 1, (d,), float32)`` mapped by ``envs.actions.ActionMap``.
+    As FilterTune-v0: ``Box(-1, 1, (d,), float32)`` mapped by ``envs.actions.ActionMap``; ``step`` takes
+    exactly one action of shape (d,), finite, within [-1, 1] (1e-6 float32 tolerance, clipped); anything
+    else raises ``ValueError`` (``TypeError`` for a non-numeric dtype) and leaves the episode where it was.
 
     ## Observation Space
     ``Box(-inf, inf, (20 + d + 1,), float32)``: the 20 measurement features of ``envs.features`` computed
@@ -45,17 +47,29 @@ class FilterRetuneEnv(TrackEnv):
     the window has no ground truth), others action minus rule.
 
     ## Starting State
-    As FilterTune-v0 (``reset(options={"sequence": ..., "noise_seed": ...})`` pins an episode); the
-    first window is already filtered by the rule.
+    As FilterTune-v0: ``reset(options={"sequence": ..., "noise_seed": ...})`` pins an episode, arguments
+    and options are checked the same way, a rejected reset changes nothing, and reset's ``info`` is
+    ``{"track": {...}}`` without the true scenario. The first window is already filtered by the rule.
+
+    Every episode has at least 2 windows (2·W frames: the warm-up and one step). ``sim`` and ``video``
+    tracks have ``track_length`` frames, so ``track_length < 2 * window`` raises ``ValueError`` at
+    construction. OTB sequences shorter than 2·W are left out of the episode pool (with W = 50: Bird2 in
+    train, Deer, Football1, Skiing, KiteSurf in test): an unpinned reset re-draws the sequence from the
+    noise seed's own generator (seeds whose first pick is long enough keep it), and pinning a short one
+    raises ``ValueError`` naming its length.
 
     ## Episode End
     ``terminated=True`` after the track's last window (ceil(T / W) − 1 steps); ``truncated`` is never set.
     ``info`` holds the window's ``rmse``, ``rule_rmse``, ``success_auc``, ``rule_success_auc`` (and the other
     scores, with ``rule_`` twins), ``n_frames`` (of the window), ``params``, ``rule_params``, ``window``
-    (start, end); the last step adds ``track_rmse`` and ``track_rule_rmse`` over the whole track.
+    (start, end) and ``track`` (as at reset); the last step adds ``track_rmse`` and ``track_rule_rmse``
+    over the whole track and ``scenario``, the true scenario (as in FilterTune-v0). The truth comes only
+    with the last step because every step is a decision about the same track: revealing it earlier would
+    hand it to the later decisions.
 
     ## Arguments
-    Those of FilterTune-v0 (``envs.config.EnvConfig``); ``window`` and ``history`` are used here.
+    Those of FilterTune-v0 (``envs.config.EnvConfig``, checked the same way); ``window`` and ``history``
+    are used here.
 
     >>> import gymnasium as gym, envs
     >>> env = gym.make("bboxtune/FilterRetune-v0", backend="kf_cmn", track_length=200, window=50)
@@ -68,23 +82,27 @@ class FilterRetuneEnv(TrackEnv):
     ...     steps += 1
     ...     if terminated:
     ...         break
-    >>> steps, info["window"]
-    (3, (150, 200))
+    >>> steps, info["window"], sorted(info["scenario"])
+    (3, (150, 200), ['psi', 'sigma_w', 'sigma_xi'])
 
     ## Version History
     * v0: initial version.
+    * v0, hardened (as FilterTune-v0): truth only in the last step's ``info["scenario"]``; checked
+      arguments, options and actions; OTB sequences shorter than 2 windows left out of the pool (before,
+      drawing one crashed the episode); ``track_length < 2 * window`` refused at construction.
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         tune = EnvConfig.from_kwargs(**kwargs).tune
         super().__init__(len(tune) + 1, render_mode=render_mode, **kwargs)
+        W = self.config.window
+        self.source.require_frames(2 * W, f"FilterRetune-v0 with window={W} (a warm-up window and one step)")
         self._fir = issubclass(filters.filter_class(self.config.backend), FIRFilter)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
-        ep = self._draw(seed, options)
-        T, W = len(ep.y), self.config.window
-        if T < 2 * W:
-            raise ValueError(f"episode has {T} frames; FilterRetune needs at least 2 windows of window={W} frames")
+        seed, options = check_reset_args(seed, options)
+        with self._seeded(seed):
+            ep = self._draw(options)  # the source draws only episodes of at least 2 windows
         self.episode = ep
         self._rule_params = self.rule_params(ep)
         self._rule_est = run_positions(self.config.backend, ep.y, ep.tau, self._rule_params)[0]
@@ -151,7 +169,7 @@ class FilterRetuneEnv(TrackEnv):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self.episode is None or self._start >= len(self.episode.y):
             raise RuntimeError("episode is over: call reset()")
-        a = self.action_map.check(np.asarray(action).reshape(1, -1))
+        a = self.action_map.check_one(action)
         params = self.action_map.to_params(a, self.episode.nominal)
         start, end = self._window_bounds()
         est = self._advance(params)
@@ -162,9 +180,9 @@ class FilterRetuneEnv(TrackEnv):
         info.update(n_frames=end - start, window=(start, end), track=dict(self.episode.meta),
                     params=self.physical(params), rule_params=self.physical(self._rule_params))
         terminated = end >= len(self.episode.y)
-        if terminated:
+        if terminated:  # the truth only once every decision of the episode is made
             both = score_estimates(np.stack([self._estimate, self._rule_est]), self.episode.truth)["rmse"]
-            info.update(track_rmse=float(both[0]), track_rule_rmse=float(both[1]))
+            info.update(track_rmse=float(both[0]), track_rule_rmse=float(both[1]), scenario=dict(self.episode.scenario))
         return self._observe(), float(result["reward"][0]), terminated, False, info
 
     def render(self) -> np.ndarray | None:

@@ -93,6 +93,7 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
     union = wc * hc + gwc * ghc - inter
     overlap = np.zeros_like(inter)
     np.divide(inter, union, out=overlap, where=union > 0)  # (A, T)
+    np.minimum(overlap, 1.0, out=overlap)  # rounding can give 1 + 1e-14 for equal boxes (as metrics.iou)
     dx, dy = (x + 0.5 * w) - (gx0 + 0.5 * gw), (y + 0.5 * h) - (gy0 + 0.5 * gh)
     within = dx * dx + dy * dy <= metrics.PRECISION_AT**2  # centre error <= 20 px
     if not everywhere:  # no truth: not counted; a missing estimate: IoU 0, never within the centre threshold

@@ -13,9 +13,18 @@ Frame 0 holds the initial state ``x0`` exactly (P0 = 0, as seed 000).
 Box tracks (``ndim = 4``, coordinates cx, cy, w, h in px): cx and cy follow (1) with σ_w. The sizes follow the
 same model in log space, ℓ = log(w / w_0) with ℓ_0 = 0, ℓ̇_0 = ẇ_0 / w_0 and acceleration noise
 ``sigma_w_log_size`` (1/s²), so w = w_0 exp(ℓ) stays positive and changes slowly (the std of ℓ after t seconds is
-about σ t^1.5/√3: 0.14 after 25 s at the default 0.002). The true size velocity is ẇ = w ℓ̇. The CMN (2) is
-added to all four coordinates, with σ_ξ on cx, cy and ``size_noise_ratio``·σ_ξ on w, h; measured sizes can
-therefore be <= 0 when the noise is large compared with the box (the metrics score such boxes as empty).
+about σ t^1.5/√3: 0.14 after 25 s at the default 0.002). The true size velocity is ẇ = w ℓ̇.
+
+Size bounds: a free log-size path drifts without limit (its std grows as t^1.5; unbounded, 10,000 frames at
+τ = 0.1 s gave boxes of 1e13 px), so the sizes are *reflected* at ``size_bounds`` (default 4 to 1000 px;
+OTB-100's ground-truth boxes span 7 to 396 px): ℓ is folded into [log(lo/w_0), log(hi/w_0)] like a ball
+bouncing between two walls — the reflected path is the mirror image of the free one, and its velocity ℓ̇
+changes sign at each bounce — so w always lies in [lo, hi]. A track that never reaches a bound is bit for bit
+the free one (every default 500-frame env track: their sizes span 13.5 to 335 px over 100,000 episodes).
+
+The CMN (2) is added to all four coordinates, with σ_ξ on cx, cy and ``size_noise_ratio``·σ_ξ on w, h;
+measured sizes can therefore be <= 0 when the noise is large compared with the box (the metrics score such
+boxes as empty).
 
 Everything is drawn from the ``numpy.random.Generator`` passed in, so an episode is reproducible from its seed.
 """
@@ -56,6 +65,7 @@ class Scenario:
     x0: tuple[float, ...] | None = None  # (2·ndim,) initial true state [p…, v…]; None: zeros, or a 64×48 box
     sigma_w_log_size: float = 0.002  # 1/s²: acceleration noise std of log w and log h (ndim 4)
     size_noise_ratio: float = 0.5  # σ_ξ of the w, h measurements as a fraction of sigma_xi (ndim 4)
+    size_bounds: tuple[float, float] = (4.0, 1000.0)  # px: true w and h are reflected at these bounds (ndim 4)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.psi) and 0.0 <= self.psi < 1.0):
@@ -73,8 +83,11 @@ class Scenario:
         x0 = self.initial_state
         if x0.shape != (self.K,) or not np.all(np.isfinite(x0)):
             raise ValueError(f"x0={self.x0!r} must be {self.K} finite values [positions…, velocities…]")
-        if self.ndim == 4 and np.any(x0[2:4] <= 0):
-            raise ValueError(f"x0={self.x0!r}: box sizes x0[2], x0[3] must be > 0 px")
+        lo, hi = self.size_bounds
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+            raise ValueError(f"size_bounds={self.size_bounds!r} is out of range: allowed finite 0 < low < high (px)")
+        if self.ndim == 4 and not np.all((lo <= x0[2:4]) & (x0[2:4] <= hi)):
+            raise ValueError(f"x0={self.x0!r}: box sizes x0[2], x0[3] must lie within size_bounds={self.size_bounds!r} px")
 
     @property
     def M(self) -> int:
@@ -108,6 +121,20 @@ def _integrate(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.nd
     return p.transpose(0, 2, 1), v.transpose(0, 2, 1)
 
 
+def reflect(x: np.ndarray, rate: np.ndarray, low: np.ndarray | float, high: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """Fold a free path ``x`` into [low, high] by reflection at both ends (``low`` < ``high``, broadcastable), with
+    its rate of change ``rate``: a value k reflections away from the interval is mirrored k times, and its rate
+    changes sign when k is odd. Values already inside are returned unchanged (the same arrays when all are)."""
+    outside = (x < low) | (x > high)
+    if not outside.any():
+        return x, rate
+    width = high - low
+    u = np.mod(x - low, 2.0 * width)  # position within one back-and-forth period
+    odd = u > width  # an odd number of reflections: on the way back
+    folded = low + np.where(odd, 2.0 * width - u, u)
+    return np.where(outside, folded, x), np.where(outside & odd, -rate, rate)
+
+
 def gauss_markov(psi: float, sigma_xi: np.ndarray, shape: tuple[int, int, int], rng: np.random.Generator) -> np.ndarray:
     """Stationary CMN (2) shaped (B, T, C) with per-coordinate ξ std ``sigma_xi`` (C,) along axis 1."""
     return _colour(rng.standard_normal(shape) * np.asarray(sigma_xi, dtype=float), psi)
@@ -134,7 +161,8 @@ def simulate(scenario: Scenario, rng: np.random.Generator, n_tracks: int | None 
     p0, v0, sigma, sigma_xi, sizes0 = _start(s)
     w = rng.standard_normal((B, T - 1, len(sigma))) * sigma
     e = rng.standard_normal((B, T, s.M)) * sigma_xi
-    truth, state, y = _assemble(np.tile(p0, (B, 1)), np.tile(v0, (B, 1)), w, s.tau, s.delta, _colour(e, s.psi), sizes0)
+    truth, state, y = _assemble(np.tile(p0, (B, 1)), np.tile(v0, (B, 1)), w, s.tau, s.delta, _colour(e, s.psi), sizes0,
+                                np.asarray(s.size_bounds, dtype=float))
     if n_tracks is None:
         return Track(truth=truth[0], truth_state=state[0], y=y[0], tau=s.tau)
     return Track(truth=truth, truth_state=state, y=y, tau=s.tau)
@@ -155,7 +183,8 @@ def simulate_each(scenarios: list[Scenario], rngs: list[np.random.Generator]) ->
     cmn = np.concatenate([_colour(e[i:i + 1], s.psi) for i, s in enumerate(scenarios)])
     column = lambda name: np.array([getattr(s, name) for s in scenarios])[:, None, None]  # noqa: E731
     p0, v0, sizes0 = (np.stack([start[k] for start in starts]) for k in (0, 1, 4))
-    truth, state, y = _assemble(p0, v0, w, column("tau"), column("delta"), cmn, sizes0[:, None])
+    bounds = np.array([s.size_bounds for s in scenarios])[:, None]  # (B, 1, 2): low, high per track
+    truth, state, y = _assemble(p0, v0, w, column("tau"), column("delta"), cmn, sizes0[:, None], bounds)
     return [Track(truth=truth[i], truth_state=state[i], y=y[i], tau=s.tau) for i, s in enumerate(scenarios)]
 
 
@@ -174,14 +203,17 @@ def _start(s: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
 
 
 def _assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray, delta: float | np.ndarray,
-              cmn: np.ndarray, sizes0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+              cmn: np.ndarray, sizes0: np.ndarray, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Truth (B, T, M), true state (B, T, K) and measurements (B, T, M) from the drawn noise (``sizes0``: the
-    initial (w_0, h_0) of a box track, (2,) or (B, 1, 2); empty for ndim 1 and 2)."""
+    initial (w_0, h_0) of a box track, (2,) or (B, 1, 2), and ``bounds`` its size bounds (low, high) px, (2,)
+    or (B, 1, 2); empty for ndim 1 and 2)."""
     p, v = _integrate(p0, v0, w, tau, delta)
     if sizes0.size:
-        sizes = sizes0 * np.exp(p[..., 2:])  # w = w_0 exp(ℓ)
+        low, high = np.log(bounds[..., :1] / sizes0), np.log(bounds[..., 1:] / sizes0)  # bounds of ℓ
+        ell, rate = reflect(p[..., 2:], v[..., 2:], low, high)
+        sizes = sizes0 * np.exp(ell)  # w = w_0 exp(ℓ)
         p = np.concatenate([p[..., :2], sizes], axis=-1)
-        v = np.concatenate([v[..., :2], sizes * v[..., 2:]], axis=-1)  # ẇ = w ℓ̇
+        v = np.concatenate([v[..., :2], sizes * rate], axis=-1)  # ẇ = w ℓ̇
     y = p + cmn  # (3)
     return p, np.concatenate([p, v], axis=-1), y
 def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
@@ -207,6 +239,7 @@ class ScenarioRanges:
     delta: tuple[float, float] = (0.0, 0.0)  # s, uniform
     size: tuple[float, float] = (20.0, 200.0)  # px, initial w and h (independent, log-uniform), ndim 4
     ndim: int = 4  # 1, 2 or 4 (see Scenario)
+    size_bounds: tuple[float, float] = (4.0, 1000.0)  # px, where true w and h are reflected (Scenario.size_bounds)
 
     def __post_init__(self) -> None:
         for name in ("psi", "sigma_w", "sigma_xi", "tau", "n_frames", "delta", "size"):
@@ -216,7 +249,8 @@ class ScenarioRanges:
         for name in ("sigma_w", "sigma_xi", "size"):
             if getattr(self, name)[0] <= 0:
                 raise ValueError(f"{name}={getattr(self, name)!r}: log-uniform ranges need low > 0")
-        Scenario(psi=self.psi[1], tau=self.tau[0], delta=self.delta[0], ndim=self.ndim)  # range ends valid
+        x0 = (0.0, 0.0, *self.size, 0.0, 0.0, 0.0, 0.0) if self.ndim == 4 else None  # both initial-size ends in bounds
+        Scenario(psi=self.psi[1], tau=self.tau[0], delta=self.delta[0], ndim=self.ndim, size_bounds=self.size_bounds, x0=x0)
         Scenario(psi=self.psi[0], tau=self.tau[1], delta=self.delta[1], n_frames=int(self.n_frames[0]))
 
     def sample(self, rng: np.random.Generator) -> Scenario:
@@ -233,6 +267,7 @@ class ScenarioRanges:
             ndim=self.ndim,
             delta=_uniform(rng, self.delta),
             x0=x0,
+            size_bounds=self.size_bounds,
         )
 
 

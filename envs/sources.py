@@ -3,6 +3,16 @@
 Every episode is a pure function of ``(sequence, noise_seed)``: the env draws the noise seed (and for OTB
 the sequence) from its own ``np_random`` unless ``reset(options=...)`` pins them, so paired comparisons
 can replay exactly the same episode.
+
+An episode keeps what identifies it (``meta``: sequence, noise seed, τ, tracker — shown to the agent at
+reset) apart from the true scenario that generated its noise (``scenario``: ψ, σ_w, σ_ξ or the relative
+CMN level — revealed only after the agent's decision, in the step info).
+
+Minimum length: a source draws only episodes of at least ``min_frames`` frames (2 by default;
+FilterRetune-v0 asks for two windows with :meth:`Source.require_frames`). Sources of one fixed length
+(``n_frames``: sim, video) reject a shorter one there; the OTB sources leave shorter sequences out of the
+pool — an unpinned draw re-draws the sequence from the same generator (so every seed whose first pick is long
+enough keeps its sequence), and pinning a shorter one raises ``ValueError``.
 """
 
 from __future__ import annotations
@@ -28,7 +38,8 @@ class Episode:
     y: np.ndarray  # (T, 4) measured boxes; NaN rows: missing detection
     tau: float  # s, frame interval the filters assume
     nominal: Nominal  # the fixed rule's parameters for this episode (from measurements / config only)
-    meta: dict[str, Any] = field(default_factory=dict)  # sequence, noise_seed, true scenario (analysis only)
+    meta: dict[str, Any] = field(default_factory=dict)  # what identifies it: sequence, noise_seed, tau, …
+    scenario: dict[str, Any] = field(default_factory=dict)  # the true ψ, σ that made the noise (hidden until the step)
 
 
 def _log_uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
@@ -44,9 +55,18 @@ def _nominal(cfg: EnvConfig, sigma_v: float, sigma_w: float, tau: float) -> Nomi
 class Source:
     """What the environments draw episodes from: ``draw(sequence, noise_seed)`` (subclasses) and
     ``draw_many(noise_seeds)``, the unpinned episodes of those seeds; ``block`` is how many of them
-    FilterTune-v0 draws and prepares at once."""
+    FilterTune-v0 draws and prepares at once; ``n_frames`` the length of every episode when it is fixed."""
 
     block = 1
+    n_frames: int | None = None
+    min_frames = 2
+
+    def require_frames(self, n: int, why: str) -> None:
+        """Draw only episodes of at least ``n`` frames (``why``: what needs them, for the error message).
+        A fixed ``n_frames`` below ``n`` raises ``ValueError`` naming ``track_length``."""
+        if self.n_frames is not None and self.n_frames < n:
+            raise ValueError(f"track_length={self.n_frames} is too short: {why} needs at least {n} frames")
+        self.min_frames = n
 
     def draw(self, sequence: str | None, noise_seed: int) -> Episode:
         raise NotImplementedError
@@ -67,7 +87,9 @@ class SimSource(Source):
         self.ranges = ScenarioRanges(
             psi=cfg.psi_range, sigma_w=cfg.sigma_w_range, sigma_xi=cfg.sigma_xi_range, tau=cfg.tau_range,
             n_frames=(cfg.track_length, cfg.track_length), size=cfg.box_size_range, ndim=4,
+            size_bounds=cfg.box_size_bounds,
         )
+        self.n_frames = cfg.track_length
         self.block = max(1, min(64, 2**15 // cfg.track_length))  # episodes FilterTune-v0 prepares at once
         self.sigma_v_nominal = float(np.sqrt(np.prod(cfg.sigma_xi_range)))
         self.sigma_w_nominal = float(np.sqrt(np.prod(cfg.sigma_w_range)))
@@ -89,11 +111,12 @@ class SimSource(Source):
                                 max_horizon=self.cfg.horizon_max)
         episodes = []
         for seed, scenario, track, horizon in zip(noise_seeds, scenarios, tracks, horizons.tolist()):
-            meta = {"sequence": None, "noise_seed": seed, "psi": scenario.psi, "sigma_w": scenario.sigma_w,
-                    "sigma_xi": scenario.sigma_xi, "tau": scenario.tau}
+            meta = {"sequence": None, "noise_seed": seed, "tau": scenario.tau}
+            truth = {"psi": scenario.psi, "sigma_w": scenario.sigma_w, "sigma_xi": scenario.sigma_xi}
             nominal = Nominal(sigma_w=self.sigma_w_nominal, sigma_v=self.sigma_v_nominal, psi=self.cfg.nominal_psi,
                               horizon=horizon)
-            episodes.append(Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta))
+            episodes.append(Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta,
+                                    scenario=truth))
         return episodes
 
 
@@ -115,9 +138,21 @@ class OTBSource(Source):
         if not names:
             raise ValueError(f"no sequences in split {cfg.split!r} for source {cfg.source!r}")
         self.names = names
+        self._long_enough = frozenset(names)  # the pool: sequences of at least min_frames frames
+
+    def require_frames(self, n: int, why: str) -> None:
+        """Leave the sequences shorter than ``n`` frames out of the pool (documented in the module docstring)."""
+        self._long_enough = frozenset(name for name in self.names if len(self.dataset.groundtruth(name)) >= n)
+        if not self._long_enough:
+            raise ValueError(f"no sequence of split {self.cfg.split!r} has the {n} frames {why} needs")
+        self.min_frames = n
 
     def pick(self, rng: np.random.Generator) -> str:
-        return str(self.names[rng.integers(len(self.names))])
+        """A sequence of the pool, uniformly: names are drawn from ``rng`` until one is long enough."""
+        while True:
+            name = str(self.names[rng.integers(len(self.names))])
+            if name in self._long_enough:
+                return name
 
     def draw(self, sequence: str | None, noise_seed: int) -> Episode:
         from envs.otb import replay_synthetic, replay_tracker
@@ -126,20 +161,24 @@ class OTBSource(Source):
         if name not in self.dataset.names:
             raise ValueError(f"options['sequence']={name!r} is not an OTB sequence under {self.dataset.root}")
         gt = self.dataset.groundtruth(name)
+        if len(gt) < self.min_frames:
+            raise ValueError(f"options['sequence']={name!r} has {len(gt)} frames; this env needs at least "
+                             f"{self.min_frames} (sequences shorter than that are left out of its pool)")
         cfg = self.cfg
         meta: dict[str, Any] = {"sequence": name, "noise_seed": noise_seed, "tau": cfg.otb_tau}
+        scenario: dict[str, Any] = {}
         if cfg.source == "otb":
             rng = np.random.default_rng((noise_seed, 1))  # independent of the sequence pick above
             psi = float(rng.uniform(*cfg.psi_range))
             sigma_rel = _log_uniform(rng, cfg.cmn_rel_range)
             track = replay_synthetic(gt, psi=psi, sigma_rel=sigma_rel, rng=rng, tau=cfg.otb_tau)
-            meta.update(psi=psi, sigma_rel=sigma_rel)
+            scenario.update(psi=psi, sigma_rel=sigma_rel)
         else:
             track = replay_tracker(gt, self.dataset.tracker_boxes(cfg.tracker, name), tau=cfg.otb_tau)
             meta.update(tracker=cfg.tracker)
         scale = box_scale(track.y)
         nominal = _nominal(cfg, cfg.otb_sigma_v_rel * scale, cfg.otb_sigma_w_rel * scale, track.tau)
-        return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta)
+        return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta, scenario=scenario)
 
 
 def make_source(cfg: EnvConfig) -> Source:

@@ -1,7 +1,16 @@
-"""What FilterTune-v0 and FilterRetune-v0 share: configuration, spaces, episode drawing, the rule."""
+"""What FilterTune-v0 and FilterRetune-v0 share: configuration, spaces, episode drawing, the rule, and the
+checks of ``reset``'s arguments.
+
+A rejected call changes nothing: ``reset`` checks ``seed`` and ``options`` before it touches the env, and if
+drawing the episode fails (an unknown or too short pinned sequence) it puts ``np_random`` back as it was, so
+the current episode — and, for FilterTune-v0, its prepared block — stays as before the call; ``step``
+checks the action before it advances anything.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any
 
 import gymnasium as gym
@@ -15,6 +24,37 @@ from envs.sources import K_AXIS, Episode, make_source
 RESET_OPTIONS = ("sequence", "noise_seed")
 
 
+def _seed_value(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}={value!r} has type {type(value).__name__}; allowed: None or an integer >= 0")
+    if value < 0:
+        raise ValueError(f"{name}={value!r} is out of range; allowed: None or an integer >= 0")
+    return int(value)
+
+
+def check_reset_args(seed: Any, options: Any) -> tuple[int | None, dict[str, Any]]:
+    """``reset``'s ``seed`` and ``options`` checked (TypeError / ValueError naming the argument): ``seed`` None
+    or an integer >= 0; ``options`` None or a mapping with the keys ``RESET_OPTIONS`` only — ``noise_seed``
+    None or an integer >= 0, ``sequence`` None or a str. Options set to None are dropped (= not given)."""
+    seed = None if seed is None else _seed_value("seed", seed)
+    if options is None:
+        return seed, {}
+    if not isinstance(options, Mapping):
+        raise TypeError(f"options={options!r} has type {type(options).__name__}; allowed: None or a dict with keys from {RESET_OPTIONS}")
+    unknown = sorted(map(repr, set(options) - set(RESET_OPTIONS)))
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {', '.join(unknown)}; allowed: {RESET_OPTIONS}")
+    checked: dict[str, Any] = {}
+    if options.get("noise_seed") is not None:
+        checked["noise_seed"] = _seed_value("options['noise_seed']", options["noise_seed"])
+    sequence = options.get("sequence")
+    if sequence is not None:
+        if not isinstance(sequence, str):
+            raise TypeError(f"options['sequence']={sequence!r} has type {type(sequence).__name__}; allowed: None or a sequence name (str)")
+        checked["sequence"] = sequence
+    return seed, checked
+
+
 class TrackEnv(gym.Env):
     """Base of the bboxtune environments (not registered itself): one track per episode, drawn by the
     configured source, with the fixed rule's parameters from the episode's nominal values."""
@@ -24,6 +64,8 @@ class TrackEnv(gym.Env):
     def __init__(self, n_extra_obs: int, render_mode: str | None = None, **kwargs: Any) -> None:
         from envs.features import FEATURE_NAMES
 
+        if render_mode is not None and not isinstance(render_mode, str):
+            raise TypeError(f"render_mode={render_mode!r} has type {type(render_mode).__name__}; allowed: None, 'rgb_array'")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r}; allowed: None, 'rgb_array'")
         self.render_mode = render_mode
@@ -35,27 +77,32 @@ class TrackEnv(gym.Env):
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(FEATURE_NAMES) + n_extra_obs,), np.float32)
         self.episode: Episode | None = None
 
-    def _seed_and_options(self, seed: int | None, options: dict[str, Any] | None) -> dict[str, Any]:
-        """Seed the env (``seed`` given: reseed ``np_random``) and return the validated reset options."""
-        super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(RESET_OPTIONS))
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; allowed: {RESET_OPTIONS}")
-        return options
+    @contextmanager
+    def _seeded(self, seed: int | None) -> Iterator[None]:
+        """Reseed ``np_random`` when ``seed`` is given (``gym.Env.reset``), and put it back as it was if the
+        body raises (a rejected reset leaves the env as it found it)."""
+        rng, rng_seed = self._np_random, self._np_random_seed
+        state = None if rng is None else rng.bit_generator.state
+        try:
+            super().reset(seed=seed)
+            yield
+        except BaseException:
+            self._np_random, self._np_random_seed = rng, rng_seed
+            if rng is not None:
+                rng.bit_generator.state = state
+            raise
 
     def _noise_seeds(self, count: int) -> list[int]:
         """The next ``count`` episode noise seeds from ``np_random`` (the same sequence whether drawn one at
         a time or in blocks)."""
         return self.np_random.integers(2**62, size=count).tolist()
 
-    def _draw(self, seed: int | None, options: dict[str, Any] | None) -> Episode:
-        """Seed the env, then draw the episode ``options`` pins (or a fresh one from ``np_random``)."""
-        options = self._seed_and_options(seed, options)
+    def _draw(self, options: dict[str, Any]) -> Episode:
+        """The episode checked ``options`` pin (or a fresh one from ``np_random``)."""
         noise_seed = options.get("noise_seed")
         if noise_seed is None:
             noise_seed = self._noise_seeds(1)[0]
-        return self.source.draw(options.get("sequence"), int(noise_seed))
+        return self.source.draw(options.get("sequence"), noise_seed)
 
     @staticmethod
     def rule_params(ep: Episode) -> dict[str, np.ndarray]:

@@ -10,18 +10,19 @@ import numpy as np
 from envs.features import measurement_features
 from envs.scoring import SCORE_KEYS, reward_from, run_positions, run_tracks, score_estimates
 from envs.sources import Episode
-from envs.track_env import TrackEnv
+from envs.track_env import TrackEnv, check_reset_args
 
 
 class FilterTuneEnv(TrackEnv):
     """
     ## Description
     One episode is one track of bounding boxes: a simulated constant-velocity box with Gauss–Markov coloured
-    measurement noise (``source="sim"``), OTB-100 ground truth corrupted with such noise (``"otb"``), or a
-    real tracker's OTB-100 output (``"otb_tracker"``). The agent sees a summary of the *measurements* and
-    chooses the smoothing filter's parameters (ψ, horizon N, noise scales) for the whole track; the filter
-    (``backend``) then runs over the track and the reward compares it with the fixed rule of the literature
-    (N = N_opt(σ_v, σ_w, τ) with nominal σ, ψ = ``nominal_psi``) on the same measurements.
+    measurement noise (``source="sim"``), OTB-100 ground truth corrupted with such noise (``"otb"``), a
+    real tracker's OTB-100 output (``"otb_tracker"``) or a detector's boxes on a synthetic video
+    (``"video"``). The agent sees a summary of the *measurements* and chooses the smoothing filter's
+    parameters (ψ, horizon N, noise scales) for the whole track; the filter (``backend``) then runs over the
+    track and the reward compares it with the fixed rule of the literature (N = N_opt(σ_v, σ_w, τ) with
+    nominal σ, ψ = ``nominal_psi``) on the same measurements.
 
     ## Action Space
     ``Box(-1, 1, (d,), float32)``, one entry per name in ``tune`` (default per back end:
@@ -34,8 +35,11 @@ class FilterTuneEnv(TrackEnv):
     | sigma_w   | σ_w = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]     |
     | sigma_v   | σ_v = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]     |
 
-    ``envs.actions.ActionMap`` implements it both ways (``to_params`` / ``to_actions``). NaN/inf entries or
-    entries outside [-1, 1] raise ``ValueError``.
+    ``envs.actions.ActionMap`` implements it both ways (``to_params`` / ``to_actions``). ``step`` takes
+    exactly one action of shape (d,): any other shape (a batch (A, d) included) raises ``ValueError``, as do
+    NaN/inf entries and entries outside [-1, 1] (entries within 1e-6 of it are accepted as float32
+    round-off and clipped — nothing else is clipped); a non-numeric or bool dtype raises ``TypeError``.
+    ``env.unwrapped.score(actions)`` takes a batch (A, d), A >= 1, with the same checks.
 
     ## Observation Space
     ``Box(-inf, inf, (20,), float32)``: features of the measured boxes only, never the truth or the true
@@ -53,7 +57,15 @@ class FilterTuneEnv(TrackEnv):
     ``reset`` draws an episode: for ``sim`` a scenario (ψ ~ U(psi_range), σ_w, σ_ξ log-uniform over their
     ranges, τ ~ U(tau_range)) and its noise; for OTB sources a sequence of ``split`` (and for ``otb`` the
     CMN level and ψ). ``reset(options={"sequence": name, "noise_seed": s})`` pins an episode (``sequence``
-    only for OTB sources), so that different methods can be compared on identical data.
+    only for OTB and video sources), so that different methods can be compared on identical data;
+    ``noise_seed`` is an integer >= 0 and ``sequence`` a str (None = not given); another key, type or
+    value raises ``ValueError`` / ``TypeError`` naming the option, as does a ``seed`` that is not None or an
+    integer >= 0. A rejected reset changes nothing: the env keeps its current episode and ``np_random``.
+
+    ``reset``'s ``info`` is ``{"track": {...}}``: what identifies the episode — ``sequence``, ``noise_seed``,
+    ``tau`` (also in the observation), ``tracker`` for ``otb_tracker``, ``detector`` and ``n_missing``
+    (frames without a detection, visible in the measurements) for ``video`` — never the true scenario,
+    which is revealed only in the step's ``info["scenario"]`` (see Episode End).
 
     Every episode is a pure function of its noise seed (and sequence); without options the seed is the
     next draw from ``np_random``. For speed the ``sim`` source draws and prepares (simulation, rule run, rule
@@ -66,25 +78,41 @@ class FilterTuneEnv(TrackEnv):
     After one step: ``terminated=True``, ``truncated=False``. ``info`` then holds, for the action and for
     the rule on the same episode: ``rmse``/``rule_rmse``, ``iou_mean``, ``success_auc``,
     ``precision20``, ``iou_precision`` (each also with a ``rule_`` prefix), ``n_frames``, ``params`` and
-    ``rule_params`` (the physical parameters applied), ``track`` (sequence, noise seed and — for
-    analysis only — the true scenario). ``env.unwrapped.score(actions)`` scores many actions (A, d) on the
-    current episode in one vectorised call and returns the same keys as arrays (A,) plus ``reward``.
+    ``rule_params`` (the physical parameters applied), ``track`` (as at reset) and ``scenario``: the truth,
+    now that the decision is made — ``psi``, ``sigma_w`` (px/s²), ``sigma_xi`` (px) for ``sim``; ``psi``,
+    ``sigma_rel`` for ``otb``; empty for ``otb_tracker`` and ``video``. ``env.unwrapped.score(actions)``
+    scores many actions (A, d) on the current episode in one vectorised call and returns the same keys as
+    arrays (A,) plus ``reward``. A step after the end raises ``RuntimeError`` (call ``reset``).
 
     ## Arguments
-    Keyword arguments of ``gym.make`` are the fields of ``envs.config.EnvConfig`` (unknown keys raise
-    ``TypeError``) plus ``render_mode`` (``None`` or ``"rgb_array"``):
+    Keyword arguments of ``gym.make`` are the fields of ``envs.config.EnvConfig`` plus ``render_mode``
+    (``None`` or ``"rgb_array"``). Each is checked by type and range (its comment there states the allowed
+    values): an unknown key or a wrong type raises ``TypeError``, a value out of range ``ValueError``, both
+    naming the argument. ``track_length`` (sim and video) is at most 100,000 frames
+    (``envs.config.TRACK_LENGTH_MAX``); simulated box sizes are reflected at ``box_size_bounds`` (default
+    4 to 1000 px, ``envs.simulate``), so they stay plausible at any length.
 
     >>> import gymnasium as gym, envs
     >>> env = gym.make("bboxtune/FilterTune-v0", backend="ufir_cmn", source="sim", track_length=300)
     >>> obs, info = env.reset(seed=0)
-    >>> obs.shape, env.action_space.shape
-    ((20,), (2,))
+    >>> obs.shape, env.action_space.shape, sorted(info["track"])
+    ((20,), (2,), ['noise_seed', 'sequence', 'tau'])
     >>> obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
-    >>> terminated, truncated, info["n_frames"]
-    (True, False, 300)
+    >>> terminated, truncated, info["n_frames"], sorted(info["scenario"])
+    (True, False, 300, ['psi', 'sigma_w', 'sigma_xi'])
+
+    ``gym.make`` does not wrap these envs in Gymnasium's ``PassiveEnvChecker`` (they are registered with
+    ``disable_env_checker=True``): in Gymnasium 1.4 that wrapper fails every later ``step`` with a
+    ``TypeError`` once its first ``reset`` has raised. The tests run Gymnasium's and SB3's full checkers.
 
     ## Version History
     * v0: initial version.
+    * v0, hardened (no change to any default 500-frame ``sim`` episode, checked bit for bit): the true
+      scenario moved from reset's ``info["track"]`` to the step's ``info["scenario"]``; arguments, reset
+      options and actions are checked by type and range, a batch action in ``step`` is refused, and a
+      rejected call leaves the env usable; simulated box sizes are reflected at ``box_size_bounds``
+      (before, they grew without bound on long tracks: 1e13 px at 10,000 frames) and ``track_length`` is
+      at most 100,000; no passive env checker by default.
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
@@ -96,18 +124,23 @@ class FilterTuneEnv(TrackEnv):
 
     # -- episode ---------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
-        options = self._seed_and_options(seed, options)
+        seed, options = check_reset_args(seed, options)
+        block: list[tuple[Episode, dict[str, Any], np.ndarray]] = []
+        with self._seeded(seed):
+            if options:  # a pinned episode: prepared alone, the queue stays as it is
+                prepared = self._prepare([self._draw(options)])[0]
+            elif seed is None and self._ready:
+                prepared = self._ready[0]
+            else:  # reseeded (the prepared block is stale) or none left: prepare the next block
+                block = self._prepare(self.source.draw_many(self._noise_seeds(self.source.block)))
+                prepared = block[0]
+        # nothing below can fail: the env changes only once the new episode is ready
         if seed is not None:
-            self._ready.clear()  # prepared with the old seed
-        if options:  # a pinned episode: prepared alone, the queue stays as it is
-            noise_seed = options.get("noise_seed")
-            if noise_seed is None:
-                noise_seed = self._noise_seeds(1)[0]
-            prepared = self._prepare([self.source.draw(options.get("sequence"), int(noise_seed))])[0]
-        else:
-            if not self._ready:
-                self._ready.extend(self._prepare(self.source.draw_many(self._noise_seeds(self.source.block))))
-            prepared = self._ready.popleft()
+            self._ready.clear()
+        if block:
+            self._ready.extend(block[1:])
+        elif not options:
+            self._ready.popleft()
         self.episode, self._rule, self._obs = prepared
         self._estimate = None
         self._done = False
@@ -149,7 +182,7 @@ class FilterTuneEnv(TrackEnv):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self._done:
             raise RuntimeError("episode is over (one step per episode): call reset()")
-        result = self.score(np.asarray(action)[None] if np.ndim(action) == 1 else action)
+        result = self.score(self.action_map.check_one(action))
         self._estimate = result["estimates"][0]
         self._done = True
         info = self._info(result)
@@ -163,6 +196,7 @@ class FilterTuneEnv(TrackEnv):
         info["params"] = self.physical(result["params"])
         info["rule_params"] = self.physical(rule["params"])
         info["track"] = dict(self.episode.meta)
+        info["scenario"] = dict(self.episode.scenario)  # the truth, now that the decision is made
         return info
 
     def render(self) -> np.ndarray | None:

@@ -7,18 +7,31 @@ one "channel"), either ``_run_axes`` (a plain run: the FIR family) or ``_run_axe
 from a carried state and returns the state it ends in: the Kalman family; ``_run_axes`` then follows from
 it). ``run`` / ``run_from`` validate ``y``, broadcast scalar / per-track (B,) parameters, split boxes into
 channels and assemble the (B, T, K) state array (positions first, then velocities).
+
+Batches run in chunks of whole tracks of at most :data:`CHUNK_SAMPLES` channel-frames, so the working memory
+beyond ``y`` and the result does not grow with B (20,000 box tracks × 500 frames with missing frames: UFIR once
+needed 12–13 GB, now ~1.3 GB peak RSS in all); small calls are one chunk, unchanged. B = 0 tracks or T = 0 frames
+give empty results. Every estimate from a channel's first finite measurement on is checked to be finite
+(``FloatingPointError`` otherwise: inside the ranges of :mod:`filters.validation` it never happens).
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
 from dataclasses import dataclass, fields, replace
 from typing import Any, ClassVar
 
 import numpy as np
 
 from filters.model import StateSpaceModel
-from filters.validation import broadcast_params, check_measurements
+from filters.validation import broadcast_params, check_measurements, check_values
+
+# Channel-frames (tracks × coordinates × frames) filtered per chunk: bounds the working memory of a call
+# (the heaviest back end, UFIR with missing samples, needs ~300 bytes per channel-frame: ~300 MB a chunk)
+CHUNK_SAMPLES = 1 << 20
+CANNOT_CONTINUE = ("{name} cannot continue a run from a Carry (run_from); only the Kalman family (kf, kf_cmn, ukf) "
+                   "can: re-run FIR filters on the measurement history")
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,6 +70,11 @@ class Carry:
                 object.__setattr__(self, f.name, arr)
         if (self.c is None) != (self.P_c is None):
             raise ValueError("carry.c and carry.P_c must be given together (ukf camera states) or both be None")
+
+    def slice(self, rows: slice) -> Carry:
+        """The carry of tracks ``rows`` (every field sliced along the track axis)."""
+        return Carry(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[rows]
+                        for f in fields(self)})
 
     def repeat(self, n: int) -> Carry:
         """This one-track carry (B = 1) for ``n`` tracks, e.g. to continue ``n`` candidate parameter sets
@@ -124,29 +142,37 @@ class Filter(ABC):
         """As ``_run_axes``, continuing from ``start`` (None: the start of every track) with the camera
         velocity ``u`` (C, T) (NaN where missing and on coordinates without camera states) or None.
         Returns the estimates (C, T, 2) and the state after the last frame."""
-        raise NotImplementedError(f"{self.name} cannot continue a run from a Carry (run_from); only the Kalman "
-                                  "family (kf, kf_cmn, ukf) can: re-run FIR filters on the measurement history")
+        raise NotImplementedError(CANNOT_CONTINUE.format(name=self.name))
 
     def run(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """Filter ``y`` shaped (T, M) or (B, T, M); NaN = missing. Returns states (T, K) or (B, T, K).
 
         ``u``: only for back ends with camera states (``camera_coordinates`` = n_c > 0): the measured apparent
-        background velocity (T, n_c) or (B, T, n_c), units/s, NaN where unavailable (see filters.ukf)."""
-        z, params, u_axes, n_tracks, batched = self._channels(y, u)
-        axes = self._run_axes(z, params) if u_axes is None else self._run_axes_from(z, params, None, u_axes)[0]
-        states = merge_axes(axes, n_tracks, self.model.M)
+        background velocity (T, n_c) or (B, T, n_c), units/s, NaN where unavailable (see filters.ukf).
+        B = 0 or T = 0 give an empty result of that shape. Large batches run in chunks of tracks
+        (:data:`CHUNK_SAMPLES`), so the working memory beyond ``y`` and the result stays bounded."""
+        Y, U, per_track, batched = self._inputs(y, u)
+        n_tracks, T, M = Y.shape
+        states = np.empty((n_tracks, T, 2 * M))
+        for rows, z, params, u_axes in self._chunks(Y, U, per_track):
+            axes = self._run_axes(z, params) if u_axes is None else self._run_axes_from(z, params, None, u_axes)[0]
+            self._check_finite(axes, z, rows, params)
+            states[rows] = merge_axes(axes, rows.stop - rows.start, M)
         return states if batched else states[0]
 
     def positions(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """The position estimates only, (T, M) or (B, T, M): ``run(y, u)[..., :M]``, cheaper where a back end
         can skip the velocities (the FIR family: half the work of its full-window convolution)."""
-        z, params, u_axes, n_tracks, batched = self._channels(y, u)
-        if u_axes is None:
-            axes = self._run_axes(z, params, positions_only=True)
-        else:
-            axes = self._run_axes_from(z, params, None, u_axes)[0]
-        M = self.model.M
-        out = axes[..., 0].reshape(n_tracks, M, -1).transpose(0, 2, 1)
+        Y, U, per_track, batched = self._inputs(y, u)
+        n_tracks, T, M = Y.shape
+        out = np.empty((n_tracks, T, M))
+        for rows, z, params, u_axes in self._chunks(Y, U, per_track):
+            if u_axes is None:
+                axes = self._run_axes(z, params, positions_only=True)
+            else:
+                axes = self._run_axes_from(z, params, None, u_axes)[0]
+            self._check_finite(axes[..., :1], z, rows, params)
+            out[rows] = axes[..., 0].reshape(rows.stop - rows.start, M, T).transpose(0, 2, 1)
         return out if batched else out[0]
 
     def run_from(self, y: np.ndarray, carry: Carry | None = None,
@@ -156,29 +182,74 @@ class Filter(ABC):
         differ from the previous call's: they apply from the first frame of ``y`` on.
 
         Returns the states (T, K) or (B, T, K) and the :class:`Carry` after the last frame (B = 1 for a
-        (T, M) input; ``carry`` must have the batch size of ``y``, see :meth:`Carry.repeat`)."""
-        z, params, u_axes, n_tracks, batched = self._channels(y, u)
-        start = None if carry is None else _split_carry(carry, n_tracks, self.model.M, self.camera_coordinates)
-        axes, end = self._run_axes_from(z, params, start, u_axes)
-        measured = ~np.isnan(z).all(axis=1) if start is None else start.measured | ~np.isnan(z).all(axis=1)
-        end = replace(end, y_last=z[:, -1], measured=measured)
-        states = merge_axes(axes, n_tracks, self.model.M)
-        return (states if batched else states[0]), _merge_carry(end, n_tracks, self.model.M)
-
-    def _channels(self, y: np.ndarray, u: np.ndarray | None) -> tuple[np.ndarray, dict[str, Any],
-                                                                        np.ndarray | None, int, bool]:
-        """Validated ``y`` and ``u`` as channels (C, T), the per-channel parameters, B, and whether batched."""
-        Y, batched = check_measurements(y, self.model.M)
+        (T, M) input; ``carry`` must have the batch size of ``y``, see :meth:`Carry.repeat`). With T = 0 frames
+        the carry is returned unchanged (None: a carry of tracks that have not started)."""
+        if type(self)._run_axes_from is Filter._run_axes_from:  # this back end keeps no state between calls
+            raise NotImplementedError(CANNOT_CONTINUE.format(name=self.name))
+        Y, U, per_track, batched = self._inputs(y, u)
         n_tracks, T, M = Y.shape
-        per_track = {k: v for k, v in self.params.items() if k in self.PER_TRACK}
-        per_track = broadcast_params(per_track, n_tracks, batched)
-        per_channel = {k: np.repeat(v, M) for k, v in per_track.items()}
-        fixed = {k: v for k, v in self.params.items() if k not in per_channel}
-        z = Y.transpose(0, 2, 1).reshape(n_tracks * M, T)
-        return z, {**fixed, **per_channel}, self._input_channels(u, Y.shape, batched), n_tracks, batched
+        n_c = self.camera_coordinates
+        if carry is not None:
+            _split_carry(carry, n_tracks, M, n_c)  # validate once, for the whole batch
+        states = np.empty((n_tracks, T, 2 * M))
+        ends: list[Carry] = []
+        for rows, z, params, u_axes in self._chunks(Y, U, per_track):
+            start = None if carry is None else _split_carry(carry.slice(rows), rows.stop - rows.start, M, n_c)
+            axes, end = self._run_axes_from(z, params, start, u_axes)
+            self._check_finite(axes, z, rows, params)
+            measured = ~np.isnan(z).all(axis=1) if start is None else start.measured | ~np.isnan(z).all(axis=1)
+            end = replace(end, y_last=z[:, -1], measured=measured)
+            states[rows] = merge_axes(axes, rows.stop - rows.start, M)
+            ends.append(_merge_carry(end, rows.stop - rows.start, M))
+        if T == 0:
+            end_carry = carry if carry is not None else not_started(n_tracks, M, n_c)
+        elif ends:
+            end_carry = Carry(**{f.name: None if getattr(ends[0], f.name) is None else
+                                 np.concatenate([getattr(e, f.name) for e in ends]) for f in fields(Carry)})
+        else:
+            end_carry = not_started(0, M, n_c)
+        return (states if batched else states[0]), end_carry
 
-    def _input_channels(self, u: np.ndarray | None, shape: tuple[int, int, int], batched: bool) -> np.ndarray | None:
-        """The camera velocity ``u`` as channels (C, T), NaN on coordinates without camera states."""
+    def _check_finite(self, axes: np.ndarray, z: np.ndarray, rows: slice, params: dict[str, Any]) -> None:
+        """Every estimate (C, T, k) at or after a channel's first finite measurement must be finite: inside the
+        documented ranges (:mod:`filters.validation`) it is; a non-finite one is a numerical failure, reported
+        rather than returned."""
+        bad = np.maximum.accumulate(~np.isnan(z), axis=1)[..., None] & ~np.isfinite(axes)
+        if bad.any():
+            c, t, _ = np.argwhere(bad)[0]
+            M = self.model.M
+            used = {k: (v[c] if np.ndim(v) == 1 and len(v) == len(z) else v) for k, v in params.items()}
+            raise FloatingPointError(
+                f"{self.name}: non-finite estimate at track {rows.start + c // M}, coordinate {c % M}, frame {t}, after "
+                f"a finite measurement (parameters {used}, tau={self.model.tau!r}): float64 failed inside the valid "
+                "ranges of filters.validation — please report this input")
+
+    def _inputs(self, y: np.ndarray, u: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None,
+                                                                      dict[str, np.ndarray], bool]:
+        """Validated ``y`` (B, T, M), ``u`` (B, T, n_c) or None, the per-track parameters as (B,) arrays, and
+        whether the input was batched."""
+        Y, batched = check_measurements(y, self.model.M)
+        per_track = {k: v for k, v in self.params.items() if k in self.PER_TRACK}
+        return Y, self._check_input(u, Y.shape, batched), broadcast_params(per_track, Y.shape[0], batched), batched
+
+    def _chunks(self, Y: np.ndarray, U: np.ndarray | None, per_track: dict[str, np.ndarray]
+                ) -> Iterator[tuple[slice, np.ndarray, dict[str, Any], np.ndarray | None]]:
+        """Consecutive chunks of tracks: (track slice, channels z (C, T), per-channel parameters (C,) with the
+        shared ones, camera velocity channels (C, T) or None), each at most :data:`CHUNK_SAMPLES` channel-frames
+        (at least one track); none for T = 0. Channel c of a chunk = its track c // M, coordinate c % M."""
+        n_tracks, T, M = Y.shape
+        if T == 0:
+            return
+        step = max(1, CHUNK_SAMPLES // (T * M))
+        fixed = {k: v for k, v in self.params.items() if k not in per_track}
+        for first in range(0, n_tracks, step):
+            rows = slice(first, min(n_tracks, first + step))
+            z = Y[rows].transpose(0, 2, 1).reshape(-1, T)
+            params = {**fixed, **{k: np.repeat(v[rows], M) for k, v in per_track.items()}}
+            yield rows, z, params, None if U is None else self._input_channels(U[rows], M)
+
+    def _check_input(self, u: np.ndarray | None, shape: tuple[int, int, int], batched: bool) -> np.ndarray | None:
+        """The camera velocity ``u`` validated and shaped (B, T, n_c), or None."""
         if u is None:
             return None
         n_c = self.camera_coordinates
@@ -190,11 +261,24 @@ class Filter(ABC):
         want = (n_tracks, T, n_c) if batched else (T, n_c)
         if U.shape != want:
             raise ValueError(f"u has shape {U.shape}; allowed: {want} (y has shape {(n_tracks, T, M)[not batched:]})")
-        if np.any(np.isinf(U)):
-            raise ValueError("u contains ±inf; allowed: finite values, or NaN where unavailable")
+        check_values("u", U)
+        return U.reshape(n_tracks, T, n_c)
+
+    @staticmethod
+    def _input_channels(U: np.ndarray, M: int) -> np.ndarray:
+        """The camera velocity (B, T, n_c) as channels (B·M, T), NaN on coordinates without camera states."""
+        n_tracks, T, n_c = U.shape
         u_axes = np.full((n_tracks, M, T), np.nan)
-        u_axes[:, :n_c] = U.reshape(n_tracks, T, n_c).transpose(0, 2, 1)
+        u_axes[:, :n_c] = U.transpose(0, 2, 1)
         return u_axes.reshape(n_tracks * M, T)
+
+
+def not_started(n_tracks: int, M: int, n_c: int = 0) -> Carry:
+    """The :class:`Carry` of ``n_tracks`` tracks that have not started (no measurement, no state yet)."""
+    nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
+    return Carry(x=nan(n_tracks, 2 * M), P=block_diagonal(nan(n_tracks, M, 2, 2)), y_last=nan(n_tracks, M),
+                 measured=np.zeros((n_tracks, M), bool), c=nan(n_tracks, n_c) if n_c else None,
+                 P_c=nan(n_tracks, n_c, 3) if n_c else None)
 
 
 def merge_axes(axes: np.ndarray, n_tracks: int, M: int) -> np.ndarray:
@@ -220,7 +304,7 @@ def _split_carry(carry: Carry, n_tracks: int, M: int, n_c: int) -> AxisCarry:
             shape = None if value is None else value.shape
             raise ValueError(f"carry.{name} has shape {shape}; allowed: {want} (B={n_tracks} tracks of y, "
                              f"K={K}, M={M}{f', n_c={n_c} camera coordinates' if n_c else ''})")
-        if value is not None and np.any(np.isinf(value)):
+        if value is not None and value.size and np.any(np.isinf(value)):
             raise ValueError(f"carry.{name} contains ±inf; allowed: finite values (NaN: not started / missing)")
     x = carry.x.reshape(n_tracks, 2, M).transpose(0, 2, 1).reshape(-1, 2)
     P = coordinate_blocks(carry.P, M, "carry.P").reshape(-1, 2, 2)

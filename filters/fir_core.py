@@ -13,11 +13,14 @@ the paper's batch formula); :meth:`FIRFilter._run_axes` applies it to every chan
 * **windows with NaN** (missing detections): the exact estimate with the missing samples dropped from the
   window's batch formula, ``window_gain(valid=mask)``, one gain per distinct (parameter group, mask) and cached;
 * **unobservable windows** (fewer usable samples than the state size, e.g. frame 0): position = the latest
-  valid measurement at or before n, velocity = 0; NaN only while no finite sample has been seen yet.
+  valid measurement at or before n, velocity = 0; NaN only while no finite sample has been seen yet. A window
+  that does determine the state but came out NaN is a numerical failure and raises ``FloatingPointError``
+  (:meth:`FIRFilter._check_unobservable`) rather than taking that fallback.
 
 Frame n = 0 is the first frame of every track; outputs are posterior estimates at every frame, float64.
 A back end with a cheaper exact form for the start-up or the NaN windows (the least-squares UFIR family:
-cumulative sums / FFT moment sums, no per-pattern gains) overrides ``_startup`` / ``_masked``.
+cumulative sums / FFT moment sums, no per-pattern gains; the window-KF family: the associative scan of
+:mod:`filters.window_scan`) overrides ``_startup`` / ``_masked``.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ import scipy.fft as sfft
 from filters.base import Filter
 from filters.horizon import rule_horizon
 from filters.model import StateSpaceModel, constant_velocity
-from filters.validation import check_horizon, check_positive
+from filters.validation import check_horizon, check_sigma
 
 CACHE_BYTES = 64 * 2**20  # bytes of gains kept by the LRU gain cache (shared by all FIR back ends)
 
@@ -73,13 +76,13 @@ GAINS = GainCache(CACHE_BYTES)
 
 
 def check_fir_params(params: dict[str, Any], model: StateSpaceModel) -> dict[str, Any]:
-    """Validate the parameters every FIR back end shares: ``sigma_w``, ``sigma_v`` (finite, > 0) and
-    ``horizon`` (integer N with K <= N, K = 2 the per-coordinate state size; None → the N_opt rule
-    :func:`filters.horizon.rule_horizon`, per track when the σ are arrays). Per-track arrays must agree in
-    length. Returns a copy of ``params`` with those three replaced by validated arrays."""
+    """Validate the parameters every FIR back end shares: ``sigma_w``, ``sigma_v`` (within
+    :data:`filters.validation.SIGMA_RANGE`) and ``horizon`` (integer N with K <= N, K = 2 the per-coordinate state
+    size; None → the N_opt rule :func:`filters.horizon.rule_horizon`, per track when the σ are arrays). Per-track
+    arrays must agree in length. Returns a copy of ``params`` with those three replaced by validated arrays."""
     out = dict(params)
-    out["sigma_w"] = check_positive("sigma_w", params["sigma_w"])
-    out["sigma_v"] = check_positive("sigma_v", params["sigma_v"])
+    out["sigma_w"] = check_sigma("sigma_w", params["sigma_w"])
+    out["sigma_v"] = check_sigma("sigma_v", params["sigma_v"])
     lengths = {k: v.shape[0] for k, v in out.items() if isinstance(v, np.ndarray) and v.ndim == 1}
     if len(set(lengths.values())) > 1:
         raise ValueError(f"per-track parameter arrays have different lengths {lengths}; allowed: one length B")
@@ -181,8 +184,27 @@ class FIRFilter(Filter):
             cs, ns = np.nonzero(holes & ~startup)
             self._masked(X, z, valid, cs, ns, L_c[cs], group, gparams)
         cs, ns = np.nonzero(np.isnan(X[..., 0]))  # unobservable windows
+        self._check_unobservable(valid, cs, ns, L_c, group, gparams)
         X[cs, ns] = _hold_last(z, valid, cs, ns)
         return X
+
+    def _check_unobservable(self, valid: np.ndarray, cs: np.ndarray, ns: np.ndarray, L_c: np.ndarray,
+                            group: np.ndarray, gparams: dict[str, np.ndarray]) -> None:
+        """The fallback (latest measurement, velocity 0) is for windows that do not determine the state; a NaN
+        estimate of a window that does (:meth:`observable`) is a numerical failure: FloatingPointError, not a
+        silent fallback."""
+        L_w = np.minimum(L_c[cs], ns + 1)  # start-up windows: frames 0 … n
+        for L_val in np.unique(L_w).tolist():
+            sel = np.flatnonzero(L_w == L_val)
+            masks = valid[cs[sel, None], ns[sel, None] - L_val + 1 + np.arange(L_val)]
+            determined = self.observable(masks, _take(gparams, group[cs[sel]]))
+            if determined.any():
+                p = sel[np.argmax(determined)]
+                raise FloatingPointError(
+                    f"{self.name}: no finite estimate for channel {cs[p]} at frame {ns[p]} although its window "
+                    f"determines the state (gain parameters {({k: v[group[cs[p]]].item() for k, v in gparams.items()})}"
+                    ", in frame units): float64 failed inside the valid ranges of filters.validation — please report "
+                    "this input")
 
     def _groups(self, params: dict[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Channel → group index (C,) and the gain parameters of each group, arrays (G,)."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.validation import check_positive
+from filters.validation import check_sigma, check_tau
 
 
 def n_opt(sigma_v: float | np.ndarray, sigma_w: float | np.ndarray, tau: float | np.ndarray) -> float | np.ndarray:
@@ -17,9 +17,9 @@ def n_opt(sigma_v: float | np.ndarray, sigma_w: float | np.ndarray, tau: float |
     >>> round(float(n_opt(4, 50, 0.05)), 1), round(float(n_opt(2, 10, 0.1)), 1), round(float(n_opt(3, 10, 0.03)), 1)
     (19.6, 15.5, 63.2)
     """
-    sv = check_positive("sigma_v", sigma_v)
-    sw = check_positive("sigma_w", sigma_w)
-    t = check_positive("tau", tau)
+    sv = check_sigma("sigma_v", sigma_v)
+    sw = check_sigma("sigma_w", sigma_w)
+    t = check_tau(tau)
     out = np.sqrt(12.0 * sv / (t**2 * sw))
     return float(out) if out.ndim == 0 else out
 

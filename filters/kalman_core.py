@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from filters.base import AxisCarry, split_covariance, split_state
+from filters.validation import VALUE_MAX, VARIANCE_MAX, check_prior_scale
 
 WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)
 N_KINDS = 5
@@ -136,90 +137,71 @@ def gain_recursion(kinds: np.ndarray, tables: StepTables,
     (2, 2, G) at the last frame (at an early stop: the steady one, which every later frame repeats).
 
     ``kinds`` (G, T), ``P_start`` (2, 2, G): the prior before frame 0 (PREDICT/UPDATE kinds) and the
-    covariance at WAIT/INIT frames. Matrices are stored row-last, (2, 2, G), so that one einsum handles all
-    rows. Stops early once all rows are in steady state."""
+    covariance at WAIT/INIT frames. Each frame is :func:`joseph_step` on arrays of the G rows (one row: on Python
+    floats, several times faster than numpy calls on length-1 arrays — the env filters one parameter set at a
+    time). Stops early once all rows are in steady state (P_n = P_{n−1} bit for bit, no kind change later)."""
     G, T = kinds.shape
-    if G == 1:
-        return _gain_recursion_one_row(kinds[0], tables, P_start[:, :, 0])
-    rows = np.arange(G)
-    eye = np.eye(2)[:, :, None]
+    flat = np.concatenate([tables.A.reshape(N_KINDS, 4, G), tables.Q.reshape(N_KINDS, 4, G), tables.Lam, tables.D,
+                           tables.R[:, None]], axis=1)  # (kind, 13 entries, row)
     coef = np.empty((T, 6, G))
     settled = np.all(kinds == kinds[:, -1:], axis=1)
     settled_from = np.where(settled, 0, T - np.argmax(kinds[:, ::-1] != kinds[:, -1:], axis=1)).max()
-    uniform = np.all(kinds == kinds[:1], axis=0)  # frames where every row has the same kind
-    resets = np.any(kinds <= INIT, axis=0)  # frames where some row waits or initialises
-    tabs = (tables.A, tables.Q, tables.Lam, tables.D, tables.R)
-    P = P_start.copy()
+    start = tuple(P_start.reshape(4, G))
+    if G == 1:  # Python floats
+        table = [tuple(flat[k, :, 0].tolist()) for k in range(N_KINDS)]
+        start, kinds_n, rows = tuple(float(v[0]) for v in start), kinds[0].tolist(), None
+    else:
+        uniform = np.all(kinds == kinds[:1], axis=0)  # frames where every row has the same kind
+        resets = np.any(kinds <= INIT, axis=0)  # frames where some row waits or initialises
+        rows = np.arange(G)
+    P = start
     for n in range(T):
-        k = kinds[:, n]
-        if uniform[n]:
-            A, Q, Lam, D, R = (t[k[0]] for t in tabs)
+        if rows is None:
+            k = kinds_n[n]
+            P_new, row = joseph_step(table[k], P)
+            if k <= INIT:  # WAIT / INIT: x = [m, 0] (INIT) or 0 (WAIT), covariance back to the start one
+                P_new, row = start, (0.0, 0.0, 0.0, 0.0, 1.0 if k == INIT else 0.0, 0.0)
+            coef[n, :, 0] = row
         else:
-            A, Q, Lam, D, R = (np.moveaxis(t[k, ..., rows], 0, -1) for t in tabs)
-        P_prior = np.einsum("ijg,jkg,lkg->ilg", A, P, A) + Q  # P⁻ = A P Aᵀ + Q (seed 000 Alg. 1 line 5)
-        PDt = np.einsum("ijg,jg->ig", P_prior, D)
-        S = np.einsum("ig,ig->g", D, PDt) + R  # S = D P⁻ Dᵀ + R (Alg. 1 line 6)
-        K = PDt / S  # K = P⁻ Dᵀ S⁻¹ (Alg. 1 line 7)
-        I_KD = eye - K[:, None] * D[None]
-        # Joseph form (I − KD) P⁻ (I − KD)ᵀ + K R Kᵀ, = (I − KD) P⁻ (Alg. 1 line 10) for the optimal K
-        P_new = np.einsum("ijg,jkg,lkg->ilg", I_KD, P_prior, I_KD) + R * K[:, None] * K[None]
-        coef[n, :4] = np.einsum("ijg,jkg->ikg", I_KD, A).reshape(4, G)  # M = (I − K D) A
-        coef[n, 4:] = np.einsum("ijg,jg->ig", I_KD, Lam) + K  # g = (I − K D) Λ + K
-        if resets[n]:
-            reset = k <= INIT
-            P_new[:, :, reset] = P_start[:, :, reset]
-            frame = coef[n]
-            frame[:, reset] = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 0.0])[:, None]  # x = [m, 0] (INIT)
-            frame[4, k == WAIT] = 0.0  # x = 0 (WAIT; output NaN)
+            k = kinds[:, n]
+            P_new, row = joseph_step(tuple(flat[k[0]] if uniform[n] else flat[k, :, rows].T), P)
+            coef[n] = row
+            if resets[n]:
+                reset = k <= INIT
+                P_new = tuple(np.where(reset, s0, p) for s0, p in zip(start, P_new))
+                coef[n][:, reset] = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 0.0])[:, None]  # x = [m, 0] (INIT)
+                coef[n][4, k == WAIT] = 0.0  # x = 0 (WAIT; output NaN)
         # P_n = P_{n-1} and no kind changes later: every later frame repeats frame n
-        if n % 8 == 7 and n >= settled_from and np.array_equal(P_new, P):
+        if n % 8 == 7 and n >= settled_from and all(np.array_equal(a, b) for a, b in zip(P_new, P)):
             coef[n + 1:] = coef[n]
-            return coef, n, P_new
+            return coef, n, np.reshape(np.array(P_new), (2, 2, G))
         P = P_new
-    return coef, T, P
+    return coef, T, np.reshape(np.array(P), (2, 2, G))
 
 
-def _gain_recursion_one_row(kinds: np.ndarray, tables: StepTables,
-                            P_start: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
-    """:func:`gain_recursion` for a single row in Python floats: the same equations, several times faster than
-    numpy calls on length-1 arrays (the env filters one parameter set at a time). It agrees with the batched
-    form to rounding (einsum's summation order itself varies with the number of rows); tested to 1e-13."""
-    T = kinds.size
-    coef = np.empty((T, 6, 1))
-    table = [(*tables.A[k, :, :, 0].ravel().tolist(), *tables.Q[k, :, :, 0].ravel().tolist(),
-              *tables.Lam[k, :, 0].tolist(), *tables.D[k, :, 0].tolist(), float(tables.R[k, 0])) for k in range(N_KINDS)]
-    settled_from = 0 if np.all(kinds == kinds[-1]) else T - int(np.argmax(kinds[::-1] != kinds[-1]))
-    s00, s01, s10, s11 = P_start.ravel().tolist()
-    p00, p01, p10, p11 = s00, s01, s10, s11
-    out = coef[:, :, 0]
-    for n, k in enumerate(kinds.tolist()):
-        a00, a01, a10, a11, q00, q01, q10, q11, l0, l1, d0, d1, r = table[k]
-        # P⁻ = A P Aᵀ + Q (seed 000 Alg. 1 line 5); sums grouped as numpy's einsum groups them for one row
-        m00 = (a00 * p00 * a00 + a00 * p01 * a01) + (a01 * p10 * a00 + a01 * p11 * a01) + q00
-        m01 = (a00 * p00 * a10 + a00 * p01 * a11) + (a01 * p10 * a10 + a01 * p11 * a11) + q01
-        m10 = (a10 * p00 * a00 + a10 * p01 * a01) + (a11 * p10 * a00 + a11 * p11 * a01) + q10
-        m11 = (a10 * p00 * a10 + a10 * p01 * a11) + (a11 * p10 * a10 + a11 * p11 * a11) + q11
-        pd0, pd1 = m00 * d0 + m01 * d1, m10 * d0 + m11 * d1
-        S = d0 * pd0 + d1 * pd1 + r  # S = D P⁻ Dᵀ + R (line 6)
-        k0, k1 = pd0 / S, pd1 / S  # K = P⁻ Dᵀ S⁻¹ (line 7)
-        i00, i01, i10, i11 = 1.0 - k0 * d0, 0.0 - k0 * d1, 0.0 - k1 * d0, 1.0 - k1 * d1  # I − K D
-        # Joseph form (I − KD) P⁻ (I − KD)ᵀ + K R Kᵀ (= line 10 for the optimal K)
-        n00 = (i00 * m00 * i00 + i00 * m01 * i01) + (i01 * m10 * i00 + i01 * m11 * i01) + r * k0 * k0
-        n01 = (i00 * m00 * i10 + i00 * m01 * i11) + (i01 * m10 * i10 + i01 * m11 * i11) + r * k0 * k1
-        n10 = (i10 * m00 * i00 + i10 * m01 * i01) + (i11 * m10 * i00 + i11 * m11 * i01) + r * k1 * k0
-        n11 = (i10 * m00 * i10 + i10 * m01 * i11) + (i11 * m10 * i10 + i11 * m11 * i11) + r * k1 * k1
-        row = out[n]
-        if k <= INIT:  # WAIT / INIT: x = [m, 0] (INIT) or 0 (WAIT), covariance back to the start one
-            n00, n01, n10, n11 = s00, s01, s10, s11
-            row[:] = (0.0, 0.0, 0.0, 0.0, 1.0 if k == INIT else 0.0, 0.0)
-        else:  # M = (I − K D) A, g = (I − K D) Λ + K
-            row[:] = (i00 * a00 + i01 * a10, i00 * a01 + i01 * a11, i10 * a00 + i11 * a10, i10 * a01 + i11 * a11,
-                      i00 * l0 + i01 * l1 + k0, i10 * l0 + i11 * l1 + k1)
-        if n % 8 == 7 and n >= settled_from and (n00, n01, n10, n11) == (p00, p01, p10, p11):
-            coef[n + 1:] = coef[n]
-            return coef, n, np.array([[n00, n01], [n10, n11]])[:, :, None]
-        p00, p01, p10, p11 = n00, n01, n10, n11
-    return coef, T, np.array([[p00, p01], [p10, p11]])[:, :, None]
+def joseph_step(t: tuple, P: tuple) -> tuple[tuple, tuple]:
+    """One frame of seed 000 Algorithm 1 on the entries of 2×2 matrices (Python floats or arrays over rows):
+    table entries ``t`` = (A row-major, Q row-major, Λ, D, R) and the previous posterior ``P`` (row-major) →
+    the new posterior (Joseph form) and the affine coefficients [M = (I − K D) A row-major, g = (I − K D) Λ + K]."""
+    a00, a01, a10, a11, q00, q01, q10, q11, l0, l1, d0, d1, r = t
+    p00, p01, p10, p11 = P
+    # P⁻ = A P Aᵀ + Q (Alg. 1 line 5)
+    m00 = (a00 * p00 * a00 + a00 * p01 * a01) + (a01 * p10 * a00 + a01 * p11 * a01) + q00
+    m01 = (a00 * p00 * a10 + a00 * p01 * a11) + (a01 * p10 * a10 + a01 * p11 * a11) + q01
+    m10 = (a10 * p00 * a00 + a10 * p01 * a01) + (a11 * p10 * a00 + a11 * p11 * a01) + q10
+    m11 = (a10 * p00 * a10 + a10 * p01 * a11) + (a11 * p10 * a10 + a11 * p11 * a11) + q11
+    pd0, pd1 = m00 * d0 + m01 * d1, m10 * d0 + m11 * d1
+    S = d0 * pd0 + d1 * pd1 + r  # S = D P⁻ Dᵀ + R (line 6)
+    k0, k1 = pd0 / S, pd1 / S  # K = P⁻ Dᵀ S⁻¹ (line 7)
+    i00, i01, i10, i11 = 1.0 - k0 * d0, 0.0 - k0 * d1, 0.0 - k1 * d0, 1.0 - k1 * d1  # I − K D
+    # Joseph form (I − KD) P⁻ (I − KD)ᵀ + K R Kᵀ (= line 10 for the optimal K)
+    n00 = (i00 * m00 * i00 + i00 * m01 * i01) + (i01 * m10 * i00 + i01 * m11 * i01) + r * k0 * k0
+    n01 = (i00 * m00 * i10 + i00 * m01 * i11) + (i01 * m10 * i10 + i01 * m11 * i11) + r * k0 * k1
+    n10 = (i10 * m00 * i00 + i10 * m01 * i01) + (i11 * m10 * i00 + i11 * m11 * i01) + r * k1 * k0
+    n11 = (i10 * m00 * i10 + i10 * m01 * i11) + (i11 * m10 * i10 + i11 * m11 * i11) + r * k1 * k1
+    row = (i00 * a00 + i01 * a10, i00 * a01 + i01 * a11, i10 * a00 + i11 * a10, i10 * a01 + i11 * a11,
+           i00 * l0 + i01 * l1 + k0, i10 * l0 + i11 * l1 + k1)
+    return (n00, n01, n10, n11), row
 
 
 def apply_affine(coef: np.ndarray, steady_from: int, row_of_channel: np.ndarray, m: np.ndarray,
@@ -248,14 +230,26 @@ def apply_affine(coef: np.ndarray, steady_from: int, row_of_channel: np.ndarray,
     return out.transpose(2, 0, 1)
 
 
-def _affine_blocks(coef: np.ndarray, x_prev: np.ndarray, m: np.ndarray, block: int = 16) -> np.ndarray:
+def _affine_blocks(coef: np.ndarray, x_prev: np.ndarray, m: np.ndarray, block: int = 16,
+                   group: int = 4096) -> np.ndarray:
     """x_n = M_n x_{n-1} + g_n m_n for all channels, with ``coef`` (T, 6) rows [M (row-major), g] shared by
     them, ``block`` frames per matrix product: within a block starting at frame b,
     x_{b+i} = Φ_i x_{b-1} + Σ_{j<=i} Ψ_ij m_{b+j} with Φ_i = M_{b+i}⋯M_b and Ψ_ij = M_{b+i}⋯M_{b+j+1} g_{b+j}
-    (Φ, Ψ of all blocks built together, a loop over the ``block`` offsets). ``x_prev`` (2, C) the state before
-    frame 0, ``m`` (T, C) → (T, 2, C)."""
+    (Φ, Ψ of ``group`` blocks built together — 16 MB —, a loop over the ``block`` offsets). ``x_prev`` (2, C) the
+    state before frame 0, ``m`` (T, C) → (T, 2, C)."""
     T, C = m.shape
     L = min(block, T)
+    out = np.empty((T, 2, C))
+    for first in range(0, T, L * group):  # groups of blocks: bounded memory for long tracks
+        last = min(T, first + L * group)
+        out[first:last] = _affine_block_group(coef[first:last], x_prev, m[first:last], L)
+        x_prev = out[last - 1]
+    return out
+
+
+def _affine_block_group(coef: np.ndarray, x_prev: np.ndarray, m: np.ndarray, L: int) -> np.ndarray:
+    """:func:`_affine_blocks` on consecutive blocks of ``L`` frames, all built at once."""
+    T, C = m.shape
     nb = -(-T // L)
     pad = nb * L - T  # trailing frames with M = 0, g = 0: their outputs are dropped
     coef = np.concatenate([coef, np.zeros((pad, 6))]) if pad else coef
@@ -303,21 +297,27 @@ def _group_rows(key: np.ndarray, kinds: np.ndarray) -> tuple[np.ndarray, np.ndar
     return first_of_row, row_of_channel
 
 
+GainRecursion = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, int, np.ndarray]]
+
+
 def filter_channels(m: np.ndarray, kinds: np.ndarray, row_params: np.ndarray, x_start: np.ndarray,
-                    P_start: np.ndarray,
-                    build_tables: Callable[[np.ndarray], StepTables]) -> tuple[np.ndarray, np.ndarray]:
+                    P_start: np.ndarray, build_tables: Callable[[np.ndarray], StepTables] | None = None,
+                    recursion: GainRecursion | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Filter channels (C, T) that share one model up to their parameters.
 
-    ``row_params`` (C, n): the per-channel parameters the tables depend on; ``build_tables(params (G, n))``
-    returns the :class:`StepTables` of G unique rows. Channels with equal parameters, start covariance and
-    frame kinds share one gain sequence. Returns posterior states (C, T, 2), NaN at WAIT frames, and the
-    posterior covariance at the last frame (C, 2, 2), NaN for channels still waiting there."""
+    ``row_params`` (C, n): the per-channel parameters the gains depend on. Either ``build_tables(params (G, n))``
+    returns the :class:`StepTables` of G unique rows (for :func:`gain_recursion`), or ``recursion(kinds (G, T),
+    params (G, n), P_start (2, 2, G))`` computes their coefficients as :func:`gain_recursion` does (the UKF's
+    sigma-point recursion). Channels with equal parameters, start covariance and frame kinds share one gain
+    sequence. Returns posterior states (C, T, 2), NaN at WAIT frames, and the posterior covariance at the last
+    frame (C, 2, 2), NaN for channels still waiting there."""
     C = m.shape[0]
     key = np.concatenate([row_params.reshape(C, -1), P_start.reshape(C, 4)], axis=1)
     first_of_row, row_of_channel = _group_rows(np.ascontiguousarray(key).view(np.uint64), kinds)
-    coef, steady_from, P_rows = gain_recursion(
-        kinds[first_of_row], build_tables(row_params[first_of_row]), P_start[first_of_row].transpose(1, 2, 0)
-    )
+    if recursion is None:
+        recursion = lambda k, p, P: gain_recursion(k, build_tables(p), P)  # noqa: E731
+    coef, steady_from, P_rows = recursion(kinds[first_of_row], row_params[first_of_row],
+                                          P_start[first_of_row].transpose(1, 2, 0))
     states = apply_affine(coef, steady_from, row_of_channel, m, x_start)
     P_end = P_rows[:, :, row_of_channel].transpose(2, 0, 1)
     if np.any(kinds[:, 0] == WAIT):  # WAIT frames lead a channel's sequence
@@ -326,19 +326,24 @@ def filter_channels(m: np.ndarray, kinds: np.ndarray, row_params: np.ndarray, x_
     return states, P_end
 
 
-def check_prior(x0: object, P0: object, K: int, M: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Validate the full-model prior: ``x0`` None or finite (K,); ``P0`` None or finite symmetric positive
-    semi-definite (K, K) that does not couple different coordinates."""
+def check_prior(x0: object, P0: object, K: int, M: int, sigma_v: np.ndarray,
+                tau: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Validate the full-model prior: ``x0`` None or finite (K,) with entries within ±``VALUE_MAX``; ``P0`` None or
+    symmetric positive semi-definite (K, K) with entries within ±``VARIANCE_MAX`` that does not couple different
+    coordinates and whose per-coordinate blocks, in frame units, have eigenvalues <= ``PRIOR_MAX`` × every track's
+    ``sigma_v``² (:mod:`filters.validation`; the model's interval ``tau``)."""
     x = None
     if x0 is not None:
         x = np.asarray(x0, dtype=float)
-        if x.shape != (K,) or not np.all(np.isfinite(x)):
-            raise ValueError(f"x0={x0!r} (shape {x.shape}) is invalid: allowed None or a finite array of shape ({K},)")
+        if x.shape != (K,) or not np.all(np.abs(x) <= VALUE_MAX):
+            raise ValueError(f"x0={x0!r} (shape {x.shape}) is invalid: allowed None or a finite array of shape ({K},) "
+                             f"with |x0| <= {VALUE_MAX:g}")
     P = None
     if P0 is not None:
         P = np.asarray(P0, dtype=float)
-        if P.shape != (K, K) or not np.all(np.isfinite(P)):
-            raise ValueError(f"P0 has shape {P.shape}: allowed None or a finite array of shape ({K}, {K})")
+        if P.shape != (K, K) or not np.all(np.abs(P) <= VARIANCE_MAX):
+            raise ValueError(f"P0 has shape {P.shape} (max |P0| = {np.max(np.abs(P), initial=0):.3g}): allowed None or "
+                             f"a finite array of shape ({K}, {K}) with |P0| <= {VARIANCE_MAX:g}")
         scale = np.max(np.abs(P))
         if np.max(np.abs(P - P.T)) > 1e-12 * scale:
             raise ValueError(f"P0 is not symmetric (max |P0 − P0ᵀ| = {np.max(np.abs(P - P.T)):.3g}); allowed: "
@@ -346,5 +351,5 @@ def check_prior(x0: object, P0: object, K: int, M: int) -> tuple[np.ndarray | No
         low = np.linalg.eigvalsh(P).min()
         if low < -1e-12 * scale:
             raise ValueError(f"P0 has eigenvalue {low:.3g} < 0; allowed: a symmetric positive semi-definite matrix")
-        split_covariance(P, M)
+        check_prior_scale(split_covariance(P, M), sigma_v, tau)
     return x, P

@@ -38,25 +38,23 @@ import numpy as np
 
 from filters.base import AxisCarry, Filter
 from filters.kalman_core import StepTables, channel_start, check_prior, filter_channels, frame_kinds, plain_tables
-from filters.validation import check_positive
+from filters.validation import check_sigma
 
 
 class KF(Filter):
     """Kalman filter. Parameters: ``sigma_w`` (acceleration noise std, units/s², per track), ``sigma_v``
-    (measurement noise std, units, per track), ``x0`` (K,) and ``P0`` (K, K) prior (see module docstring)."""
+    (measurement noise std, units, per track), ``x0`` (K,) and ``P0`` (K, K) prior (see module docstring); valid
+    ranges in :mod:`filters.validation` (σ within [1e-30, 1e30], P0 at most 1e8 σ_v² per coordinate in frame
+    units)."""
 
     name: ClassVar[str] = "kf"
     DEFAULTS: ClassVar[dict[str, Any]] = {"sigma_w": 1.0, "sigma_v": 1.0, "x0": None, "P0": None}
     PER_TRACK: ClassVar[tuple[str, ...]] = ("sigma_w", "sigma_v")
 
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
-        x0, P0 = check_prior(params["x0"], params["P0"], self.model.K, self.model.M)
-        return {
-            "sigma_w": check_positive("sigma_w", params["sigma_w"]),
-            "sigma_v": check_positive("sigma_v", params["sigma_v"]),
-            "x0": x0,
-            "P0": P0,
-        }
+        sigma_v = check_sigma("sigma_v", params["sigma_v"])
+        x0, P0 = check_prior(params["x0"], params["P0"], self.model.K, self.model.M, sigma_v, self.model.tau)
+        return {"sigma_w": check_sigma("sigma_w", params["sigma_w"]), "sigma_v": sigma_v, "x0": x0, "P0": P0}
 
     def _run_axes_from(self, z: np.ndarray, params: dict[str, Any], start: AxisCarry | None,
                        u: np.ndarray | None) -> tuple[np.ndarray, AxisCarry]:

@@ -48,27 +48,23 @@ from filters.base import AxisCarry, Filter
 from filters.model import StateSpaceModel
 from filters.kalman_core import (UPDATE_Z, StepTables, channel_start, check_prior, filter_channels, frame_kinds,
                                  plain_tables)
-from filters.validation import check_positive, check_psi
+from filters.validation import check_sigma, check_psi
 
 
 class KFCMN(Filter):
     """KF for CMN. Parameters: ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v`` (std σ_ξ of the
-    white noise driving the CMN, units), ``psi`` (coloredness 0 <= ψ < 1) — all per track — and the prior
-    ``x0`` (K,), ``P0`` (K, K) (see module docstring)."""
+    white noise driving the CMN, units), ``psi`` (coloredness 0 <= ψ <= 0.99) — all per track — and the prior
+    ``x0`` (K,), ``P0`` (K, K) (see module docstring); valid ranges in :mod:`filters.validation`."""
 
     name: ClassVar[str] = "kf_cmn"
     DEFAULTS: ClassVar[dict[str, Any]] = {"sigma_w": 1.0, "sigma_v": 1.0, "psi": 0.0, "x0": None, "P0": None}
     PER_TRACK: ClassVar[tuple[str, ...]] = ("sigma_w", "sigma_v", "psi")
 
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
-        x0, P0 = check_prior(params["x0"], params["P0"], self.model.K, self.model.M)
-        return {
-            "sigma_w": check_positive("sigma_w", params["sigma_w"]),
-            "sigma_v": check_positive("sigma_v", params["sigma_v"]),
-            "psi": check_psi(params["psi"]),
-            "x0": x0,
-            "P0": P0,
-        }
+        sigma_v = check_sigma("sigma_v", params["sigma_v"])
+        x0, P0 = check_prior(params["x0"], params["P0"], self.model.K, self.model.M, sigma_v, self.model.tau)
+        return {"sigma_w": check_sigma("sigma_w", params["sigma_w"]), "sigma_v": sigma_v,
+                "psi": check_psi(params["psi"]), "x0": x0, "P0": P0}
 
     def _run_axes_from(self, z: np.ndarray, params: dict[str, Any], start: AxisCarry | None,
                        u: np.ndarray | None) -> tuple[np.ndarray, AxisCarry]:

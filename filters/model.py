@@ -16,7 +16,7 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
-from filters.validation import check_positive
+from filters.validation import check_tau
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,7 +49,8 @@ class StateSpaceModel:
 
 
 def constant_velocity(tau: float, ndim: int = 1) -> StateSpaceModel:
-    """Constant-velocity model with white acceleration noise for ``ndim`` independent coordinates.
+    """Constant-velocity model with white acceleration noise for ``ndim`` independent coordinates; ``tau`` (s)
+    within :data:`filters.validation.TAU_RANGE`.
 
     Per coordinate: ``F = [[1, τ], [0, 1]]``, ``H = [1, 0]``, ``B = [τ²/2, τ]ᵀ``, so the process noise
     covariance is ``Q = σ_w² B Bᵀ`` with σ_w the acceleration noise std (units per s²).
@@ -58,7 +59,7 @@ def constant_velocity(tau: float, ndim: int = 1) -> StateSpaceModel:
     >>> m.K, m.M, m.F.shape, m.B.shape
     (8, 4, (8, 8), (8, 4))
     """
-    tau = float(check_positive("tau", tau))
+    tau = float(check_tau(tau))
     if not isinstance(ndim, (int, np.integer)) or ndim < 1:
         raise ValueError(f"ndim={ndim!r} must be an integer >= 1")
     return _constant_velocity(tau, int(ndim))

@@ -23,6 +23,7 @@ import numpy as np
 
 from filters.fir_core import check_fir_params
 from filters.oufir import KalmanWindowFIR, hold_last, kf_step, window_gls_gain
+from filters.validation import VARIANCE_MAX, check_prior_scale
 
 
 def default_prior(sigma_v: float, tau: float) -> np.ndarray:
@@ -65,15 +66,27 @@ def ofir_iterative(y: np.ndarray, F: np.ndarray, H: np.ndarray, B: np.ndarray, h
     return out
 
 
-def check_prior(P0: object) -> np.ndarray | None:
-    """``P0``: None or a finite, symmetric, positive definite (2, 2) covariance (ValueError otherwise)."""
+PRIOR_LOW = 1e-30  # smallest eigenvalue of the prior covariance in frame units, relative to σ_v²
+
+
+def check_prior(P0: object, sigma_v: np.ndarray, tau: float) -> np.ndarray | None:
+    """``P0``: None or a finite, symmetric, positive definite (2, 2) covariance with entries within
+    ±``VARIANCE_MAX``, eigenvalues in frame units (of ``diag(1, τ) P0 diag(1, τ)``) within [:data:`PRIOR_LOW`,
+    :data:`filters.validation.PRIOR_MAX`] × every track's σ_v², and a Cholesky factorisation that succeeds
+    (ValueError otherwise)."""
     if P0 is None:
         return None
     P = np.asarray(P0, dtype=float)
-    if P.shape != (2, 2) or not np.all(np.isfinite(P)) or not np.array_equal(P, P.T) or np.any(
-            np.linalg.eigvalsh(P) <= 0):
+    if P.shape != (2, 2) or not np.all(np.abs(P) <= VARIANCE_MAX) or not np.array_equal(P, P.T):
         raise ValueError(f"P0={P0!r} is out of range: allowed None or a finite symmetric positive definite (2, 2) "
-                         "covariance of one coordinate's [position, velocity]")
+                         f"covariance of one coordinate's [position, velocity] with |P0| <= {VARIANCE_MAX:g}")
+    check_prior_scale(P[None], sigma_v, tau, low=PRIOR_LOW)
+    S = np.diag([1.0, tau])
+    try:  # positive definite in floating point too (a rotated prior with eigenvalues 1e24 apart is not)
+        np.linalg.cholesky(S @ P @ S / np.max(sigma_v) ** 2)
+    except np.linalg.LinAlgError:
+        raise ValueError(f"P0={P0!r} is not numerically positive definite (its Cholesky factorisation in frame "
+                         "units fails); allowed: a positive definite covariance") from None
     return P
 
 
@@ -83,7 +96,8 @@ class OFIR(KalmanWindowFIR):
     Parameters: ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v`` (measurement noise std, units),
     ``horizon`` N (integer >= 2; None → :func:`filters.horizon.rule_horizon`) — each a scalar or (B,) per track;
     ``P0``: prior covariance (2, 2) of [position, velocity] at the horizon start, the same for every coordinate
-    and track (None → :func:`default_prior` from each track's σ_v).
+    and track (None → :func:`default_prior` from each track's σ_v; in frame units its eigenvalues within
+    [1e-30, 1e8] × σ_v², :func:`check_prior`).
 
     >>> import numpy as np, filters
     >>> f = filters.make("ofir", filters.constant_velocity(0.05), sigma_w=50.0, sigma_v=4.0, horizon=20)
@@ -98,7 +112,7 @@ class OFIR(KalmanWindowFIR):
 
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
         out = check_fir_params(params, self.model)
-        out["P0"] = check_prior(params["P0"])
+        out["P0"] = check_prior(params["P0"], out["sigma_v"], self.model.tau)
         return out
 
     @classmethod
@@ -122,9 +136,22 @@ class OFIR(KalmanWindowFIR):
         return ofir_gain(axis.F, axis.H, axis.B, valid, params["sigma_w"], params["sigma_v"],
                          self.prior(params["sigma_v"]))
 
+    def scaled_prior(self, sigma_v: np.ndarray) -> np.ndarray:
+        """The horizon-start prior covariances (P, 2, 2) in units of σ_v² of channels with ``sigma_v`` (P,)."""
+        if self.params["P0"] is None:  # default_prior(σ_v, τ) / σ_v²
+            return np.broadcast_to(np.diag([1.0, 1.0 / self.model.tau**2]), (sigma_v.size, 2, 2))
+        return self.params["P0"] / sigma_v[:, None, None] ** 2
+
     def start_state(self, y_first: np.ndarray, y_now: np.ndarray, gap: np.ndarray,
                     params: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """The data-linear prior at the first valid sample: [y_a, 0] with covariance P0 (units of σ_v)."""
-        sv = params["sigma_v"]
-        P = np.stack([self.prior(s) / s**2 for s in sv.tolist()])
-        return np.stack([y_now, np.zeros_like(y_now)], axis=1), P
+        return np.stack([y_now, np.zeros_like(y_now)], axis=1), self.scaled_prior(params["sigma_v"])
+
+    def scan_start(self, y: np.ndarray, valid: np.ndarray, channel: np.ndarray, first: np.ndarray,
+                   params: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """The window's KF starts after its oldest valid sample a, from the prior [y_a, 0] with covariance P0."""
+        T = y.shape[1]
+        following = np.minimum.accumulate(np.where(valid, np.arange(T), T)[:, ::-1], axis=1)[:, ::-1]
+        a = following[channel, first]  # the windows passed here hold at least 2 valid samples: a < T
+        mean = np.stack([y[channel, a], np.zeros(a.size)], axis=1)
+        return a + 1, mean, self.scaled_prior(params["sigma_v"])

@@ -37,7 +37,7 @@ from filters.validation import check_psi
 
 class UFIRCMN(UFIR):
     """UFIR for coloured measurement noise. Parameters (scalars or per-track (B,) arrays): ``psi``
-    (0 <= ψ < 1), ``horizon`` N (differenced samples, integer >= 2; None → the white-noise N_opt rule),
+    (0 <= ψ <= 0.99: beyond, windows with missing samples lose accuracy, :mod:`filters.validation`), ``horizon`` N (differenced samples, integer >= 2; None → the white-noise N_opt rule),
     ``sigma_w``, ``sigma_v`` (σ_ξ; used only by that rule)."""
 
     name: ClassVar[str] = "ufir_cmn"

@@ -13,12 +13,21 @@ x = x⁻ + K (y − ẑ), P = P⁻ − K S Kᵀ. Noise is additive (Q, R added t
 than carried as extra sigma-point dimensions (the augmented x^a of seed 003 eq. 5); for additive noise
 both give the same filter on linear models.
 
-The box model is linear, so this UKF equals :class:`filters.kf.KF` up to rounding: at the default
-α = 1, β = 2, κ = 0 the tests measure relative differences of 2e-15 with a prior and 6e-13 when starting from
-the first measurement (diffuse velocity); tolerance 1e-8. With the small α of seed 003 (1e-3),
-W_0^m = 1 − 1/α² ≈ −1e6 and cancellation costs about six digits: 5e-6 absolute on states up to 4.4e3
-(1e-9 relative; notes §1.8 found 6.8e-6 on 6.7e3 with filterpy). Against filterpy's
-``UnscentedKalmanFilter`` (Merwe points, same α, β, κ) the difference is ~2e-15 relative.
+Linear model, computed as such. f and h are linear here (f = F, h = H) and the sigma points are symmetric about
+their centre, so their weighted means are exactly x⁻ = F x and ẑ = H x⁻; the code uses those exact means and
+passes only the covariances through the sigma points, drawn around 0 (χ_0 = 0, χ_i = ±[√((n + λ) P)]_i, with
+n + λ computed as α²(n + κ)). Deviations from the exact mean make χ_0's deviation zero, so β (and W_0^c) has no
+effect on this linear model. A generic UKF instead forms Σ W^m χ around x, adding rounding of order
+eps·|W_i|·‖√P‖ to the means — 2e4 px of error on a 200 px track with σ_v = 1e20, ~1e-9 relative with seed 003's
+α = 1e-3 (W_0^m ≈ −1e6), all digits at per-frame noise ratios σ_w τ²/σ_v beyond 1e14 or for κ next to −2.
+The covariance recursion does not depend on the data, so — as for :class:`filters.kf.KF`
+(:mod:`filters.kalman_core`) — it runs once per unique (parameters, prior, frame kinds) row until its steady state
+(the posterior covariance repeats bit for bit), and every frame is the affine map x_n = (I − K_n H) F x_{n−1} +
+K_n y_n applied to all channels at once (:func:`sigma_gain_recursion`; T = 1e6 frames in ~2 s instead of ~230 s);
+the camera-motion channels (3 states, 2 measurements) run the same linear UKF frame by frame
+(:func:`unscented_filter`). This UKF equals :class:`filters.kf.KF` to rounding for every α, β, κ in range (tests:
+1e-12 relative) and over the whole parameter range of :mod:`filters.validation` (position error against a
+40-digit reference <= 3e-13 relative for noise ratios from 1e-12 to 1e100).
 
 Camera motion (``camera_motion=True``; seed 003 eq. 17)
 --------------------------------------------------------
@@ -61,17 +70,22 @@ from typing import Any, ClassVar
 import numpy as np
 
 from filters.base import AxisCarry, Filter
-from filters.kalman_core import INIT, VELOCITY_PRIOR_SCALE, WAIT, channel_start, check_prior, frame_kinds
-from filters.validation import as_param, check_positive
+from filters.kalman_core import (INIT, UPDATE_Y, VELOCITY_PRIOR_SCALE, WAIT, channel_start, check_prior,
+                                 filter_channels, frame_kinds)
+from filters.model import StateSpaceModel
+from filters.validation import check_range, check_sigma
+
+SCALING_RANGES = {"alpha": (1e-4, 1e4, False), "beta": (0.0, 1e4, False), "kappa": (-2.0, 1e4, True)}  # open low
 
 
 class UKF(Filter):
     """Unscented KF. Per-track parameters: ``sigma_w`` (object acceleration noise std, units/s²), ``sigma_v``
-    (measurement noise std, units), ``alpha`` (> 0, sigma-point spread), ``beta`` (>= 0, prior-distribution
-    weight; 2 is optimal for Gaussians), ``kappa`` (> −2, secondary scaling), ``sigma_c`` (camera acceleration
-    noise std, units/s²) and ``sigma_u`` (std of the camera-velocity measurement u, units/s) — the last two only
-    with ``camera_motion=True``. Shared: ``x0`` (K,), ``P0`` (K, K), ``camera_motion`` (bool).
-    Defaults α = 1, β = 2, κ = 0 (seed 003 suggests α = 1e-3, which costs precision, see module docstring)."""
+    (measurement noise std, units), ``alpha`` (1e-4 <= α <= 1e4, sigma-point spread), ``beta`` (0 <= β <= 1e4,
+    prior-distribution weight; 2 is optimal for Gaussians), ``kappa`` (−2 < κ <= 1e4, secondary scaling: n + κ > 0
+    for n = 2 states), ``sigma_c`` (camera acceleration noise std, units/s²) and ``sigma_u`` (std of the
+    camera-velocity measurement u, units/s) — the last two only with ``camera_motion=True``. Shared: ``x0`` (K,),
+    ``P0`` (K, K), ``camera_motion`` (bool). σ's within :data:`filters.validation.SIGMA_RANGE`.
+    Defaults α = 1, β = 2, κ = 0 (seed 003 suggests α = 1e-3; any α in range is accurate, module docstring)."""
 
     name: ClassVar[str] = "ukf"
     DEFAULTS: ClassVar[dict[str, Any]] = {
@@ -81,13 +95,10 @@ class UKF(Filter):
     PER_TRACK: ClassVar[tuple[str, ...]] = ("sigma_w", "sigma_v", "alpha", "beta", "kappa", "sigma_c", "sigma_u")
 
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
-        x0, P0 = check_prior(params["x0"], params["P0"], self.model.K, self.model.M)
-        out = {k: check_positive(k, params[k]) for k in ("sigma_w", "sigma_v", "alpha", "sigma_c", "sigma_u")}
-        for name, low, text in (("beta", 0.0, ">= 0"), ("kappa", -2.0, "> -2 (n + κ > 0 for n = 2 states)")):
-            arr = as_param(name, params[name])
-            if not np.all(np.isfinite(arr)) or np.any(arr < low) or (name == "kappa" and np.any(arr == low)):
-                raise ValueError(f"{name}={params[name]!r} is out of range: allowed finite values {text}")
-            out[name] = arr
+        out = {k: check_sigma(k, params[k]) for k in ("sigma_w", "sigma_v", "sigma_c", "sigma_u")}
+        x0, P0 = check_prior(params["x0"], params["P0"], self.model.K, self.model.M, out["sigma_v"], self.model.tau)
+        for name, (low, high, open_low) in SCALING_RANGES.items():
+            out[name] = check_range(name, params[name], low, high, low_open=open_low)
         if not isinstance(params["camera_motion"], (bool, np.bool_)):
             raise ValueError(f"camera_motion={params['camera_motion']!r}; allowed: True or False")
         return {**out, "x0": x0, "P0": P0, "camera_motion": bool(params["camera_motion"])}
@@ -104,60 +115,60 @@ class UKF(Filter):
         C, T = z.shape
         var_v = params["sigma_v"] ** 2
         x_start, P_start, prior = channel_start(params["x0"], params["P0"], M, C, var_v, axis.tau, start)
-        kinds = frame_kinds(~np.isnan(z), prior, measured=None if start is None else start.measured)
+        finite = ~np.isnan(z)
+        kinds = frame_kinds(finite, prior, measured=None if start is None else start.measured)
         camera = np.arange(C) % M < self.camera_coordinates
-        F, b = axis.F, axis.B[:, 0]
         out, x_end, P_end = np.empty((C, T, 2)), np.empty((C, 2)), np.empty((C, 2, 2))
         c_end = P_c_end = None
-        for group, n in ((~camera, 2), (camera, 3)):
-            if not group.any():
-                continue
-            sw, sc = params["sigma_w"][group], params["sigma_c"][group]
-            Fn, Q = F, np.outer(b, b)[:, :, None] * sw**2
-            x0, P0 = np.zeros((group.sum(), n)), np.zeros((group.sum(), n, n))
-            x0[:, :2], P0[:, :2, :2] = x_start[group], P_start[group]
-            meas = z[None, group].transpose(0, 2, 1)
-            R = var_v[None, group]
-            if n == 3:  # [q, r, c]: eq. 17 in image coordinates (module docstring)
-                Fn = np.eye(3)
-                Fn[:2, :2] = F
-                b_c = np.array([b[0], b[1], b[1]])
-                Q = np.pad(Q, ((0, 1), (0, 1), (0, 0))) + np.outer(b_c, b_c)[:, :, None] * sc**2
-                P0[:, 2, 2] = VELOCITY_PRIOR_SCALE**2 * var_v[group] / axis.tau**2
-                carried = np.zeros(len(x0), dtype=bool) if start is None else ~np.isnan(start.x[group, 0])
-                if carried.any():  # continue the camera state c and its covariance with [q, r, c]
-                    x0[carried, 2] = start.c[carried]
-                    P0[carried, 2, :] = start.P_c[carried]
-                    P0[carried, :, 2] = start.P_c[carried]
-                if u is not None:
-                    meas = np.stack([z[group], u[group]]).transpose(0, 2, 1)
-                    R = np.stack([R[0], params["sigma_u"][group] ** 2])
-            H = np.eye(n)[[0, 2][: meas.shape[0]]]
-            weights = scaled_weights(n, params["alpha"][group], params["beta"][group], params["kappa"][group])
-            states, x_last, P_last = unscented_filter(
-                meas, kinds[group], lambda s, Fn=Fn: np.einsum("ij,sjc->sic", Fn, s),
-                lambda s, H=H: np.einsum("ij,sjc->sic", H, s), Q, R, x0.T, P0.transpose(1, 2, 0), weights)
-            out[group] = states[:, :2].transpose(2, 0, 1)
-            x_end[group], P_end[group] = x_last[:2].T, P_last[:2, :2].transpose(2, 0, 1)
-            if n == 3:
-                c_end, P_c_end = x_last[2], P_last[2].T
-        waiting = kinds[:, -1] == WAIT  # not started: NaN state (the next call starts it)
-        x_end[waiting], P_end[waiting] = np.nan, np.nan
-        if c_end is not None:
-            c_end[waiting[camera]], P_c_end[waiting[camera]] = np.nan, np.nan
+        plain = ~camera
+        if plain.any():  # the two-state model: gains once per row, then affine maps (kalman_core)
+            rows = np.stack([params[k][plain] for k in ("sigma_w", "sigma_v", "alpha", "beta", "kappa")], axis=1)
+            out[plain], P_end[plain] = filter_channels(
+                np.where(finite, z, 0.0)[plain], kinds[plain], rows, x_start[plain], P_start[plain],
+                recursion=lambda k, p, P: sigma_gain_recursion(k, p, P, axis))
+            x_end[plain] = out[plain, -1]
+        if camera.any():  # [q, r, c]: eq. 17 in image coordinates (module docstring), frame by frame
+            n_cam = int(camera.sum())
+            b = axis.B[:, 0]
+            Fn = np.eye(3)
+            Fn[:2, :2] = axis.F
+            b_c = np.array([b[0], b[1], b[1]])
+            Q = (np.pad(np.outer(b, b)[:, :, None] * params["sigma_w"][camera] ** 2, ((0, 1), (0, 1), (0, 0)))
+                 + np.outer(b_c, b_c)[:, :, None] * params["sigma_c"][camera] ** 2)
+            x0, P0 = np.zeros((n_cam, 3)), np.zeros((n_cam, 3, 3))
+            x0[:, :2], P0[:, :2, :2] = x_start[camera], P_start[camera]
+            P0[:, 2, 2] = VELOCITY_PRIOR_SCALE**2 * var_v[camera] / axis.tau**2
+            carried = np.zeros(n_cam, dtype=bool) if start is None else ~np.isnan(start.x[camera, 0])
+            if carried.any():  # continue the camera state c and its covariance with [q, r, c]
+                x0[carried, 2] = start.c[carried]
+                P0[carried, 2, :] = start.P_c[carried]
+                P0[carried, :, 2] = start.P_c[carried]
+            meas, R = z[None, camera].transpose(0, 2, 1), var_v[None, camera]
+            if u is not None:
+                meas = np.stack([z[camera], u[camera]]).transpose(0, 2, 1)
+                R = np.stack([R[0], params["sigma_u"][camera] ** 2])
+            H = np.eye(3)[[0, 2][: meas.shape[0]]]
+            weights = scaled_weights(3, params["alpha"][camera], params["beta"][camera], params["kappa"][camera])
+            states, x_last, P_last = unscented_filter(meas, kinds[camera], Fn, H, Q, R, x0.T, P0.transpose(1, 2, 0),
+                                                      weights)
+            out[camera] = states[:, :2].transpose(2, 0, 1)
+            x_end[camera], P_end[camera] = x_last[:2].T, P_last[:2, :2].transpose(2, 0, 1)
+            c_end, P_c_end = x_last[2], P_last[2].T
+            waiting = kinds[camera, -1] == WAIT  # not started: NaN state (the next call starts it)
+            x_end[np.flatnonzero(camera)[waiting]], P_end[np.flatnonzero(camera)[waiting]] = np.nan, np.nan
+            c_end[waiting], P_c_end[waiting] = np.nan, np.nan
         return out, AxisCarry(x=x_end, P=P_end, c=c_end, P_c=P_c_end)
 
 
-def scaled_weights(n: int, alpha: np.ndarray, beta: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Per channel (C,): sigma-point scale n + λ (C,), mean weights W^m (2n+1, C), covariance weights W^c
-    (2n+1, C) (seed 003 eq. 1)."""
-    lam = alpha**2 * (n + kappa) - n  # λ = α²(n + κ) − n
-    spread = n + lam
-    Wm = np.repeat((0.5 / spread)[None], 2 * n + 1, axis=0)  # W_i = 1 / (2(n + λ))
-    Wm[0] = lam / spread  # W_0^m = λ / (n + λ)
-    Wc = Wm.copy()
-    Wc[0] += 1.0 - alpha**2 + beta  # W_0^c = λ/(n + λ) + 1 − α² + β
-    return spread, Wm, Wc
+def scaled_weights(n: int, alpha: np.ndarray, beta: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per channel (C,): the sigma-point scale n + λ = α²(n + κ) (C,) (computed so, not as n + λ, which cancels
+    to 0 for α²(n + κ) ≪ n) and the covariance weights W^c (2n+1, C) (seed 003 eq. 1): W_0^c = λ/(n + λ) + 1 − α²
+    + β, W_i^c = 1/(2(n + λ)). (The mean weights W^m are not needed: for a linear model the weighted mean of the
+    symmetric points is the centre itself, module docstring.)"""
+    spread = alpha**2 * (n + kappa)
+    Wc = np.repeat((0.5 / spread)[None], 2 * n + 1, axis=0)  # W_i = 1 / (2(n + λ))
+    Wc[0] = (spread - n) / spread + 1.0 - alpha**2 + beta  # λ/(n + λ) + 1 − α² + β
+    return spread, Wc
 
 
 def matrix_root(A: np.ndarray) -> np.ndarray:
@@ -168,50 +179,179 @@ def matrix_root(A: np.ndarray) -> np.ndarray:
     n = A.shape[0]
     L = np.zeros_like(A)
     definite = np.ones(A.shape[2], dtype=bool)
-    for j in range(n):
-        d = A[j, j] - np.sum(L[j, :j] ** 2, axis=0)
-        definite &= d > 0
-        L[j, j] = np.sqrt(np.where(definite, d, 1.0))
-        for i in range(j + 1, n):
-            L[i, j] = (A[i, j] - np.sum(L[i, :j] * L[j, :j], axis=0)) / L[j, j]
+    with np.errstate(over="ignore", invalid="ignore"):  # a channel that overflows is not definite: eigen root
+        for j in range(n):
+            d = A[j, j] - np.sum(L[j, :j] ** 2, axis=0)
+            definite &= d > 0
+            L[j, j] = np.sqrt(np.where(definite, d, 1.0))
+            for i in range(j + 1, n):
+                L[i, j] = (A[i, j] - np.sum(L[i, :j] * L[j, :j], axis=0)) / L[j, j]
     if not definite.all():
         w, V = np.linalg.eigh(A[:, :, ~definite].transpose(2, 0, 1))
         L[:, :, ~definite] = (V * np.sqrt(np.clip(w, 0.0, None))[:, None, :]).transpose(1, 2, 0)
     return L
 
 
-def sigma_points(x: np.ndarray, P: np.ndarray, spread: np.ndarray) -> np.ndarray:
-    """χ = [x, x + √((n+λ)P)_i, x − √((n+λ)P)_i] (seed 003 eqs. 1, 6): x (n, C), P (n, n, C) → (2n+1, n, C);
-    √ is :func:`matrix_root` and [·]_i its column i."""
+def sigma_deviations(P: np.ndarray, spread: np.ndarray) -> np.ndarray:
+    """The sigma points' deviations from their centre, [0, +√((n+λ)P)_i, −√((n+λ)P)_i] (seed 003 eqs. 1, 6):
+    P (n, n, C) → (2n+1, n, C); √ is :func:`matrix_root` and [·]_i its column i."""
     offsets = matrix_root(spread * P).transpose(1, 0, 2)  # row i = column i of the root
-    return np.concatenate([x[None], x[None] + offsets, x[None] - offsets], axis=0)
+    return np.concatenate([np.zeros_like(offsets[:1]), offsets, -offsets], axis=0)
 
 
-def unscented_transform(chi: np.ndarray, Wm: np.ndarray, Wc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Mean (d, C), covariance (d, d, C) and deviations (2n+1, d, C) of sigma points ``chi`` (eqs. 3–4, 8)."""
-    mean = np.einsum("sc,sdc->dc", Wm, chi)
-    dev = chi - mean[None]
-    return mean, np.einsum("sc,sic,sjc->ijc", Wc, dev, dev), dev
+def sigma_covariance(dev: np.ndarray, Wc: np.ndarray) -> np.ndarray:
+    """Σ_s W^c_s dev_s dev_sᵀ (n, n, C) of the sigma points' deviations ``dev`` (2n+1, n, C) from their mean (eqs. 4,
+    8, 10)."""
+    return np.einsum("sc,sic,sjc->ijc", Wc, dev, dev)
 
 
-def unscented_filter(y: np.ndarray, kinds: np.ndarray, fx: Any, hx: Any, Q: np.ndarray, R: np.ndarray,
+def sigma_predict(P: np.ndarray, F: np.ndarray, Q: np.ndarray, weights: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Predicted covariance P⁻ (n, n, C) of C channels through the sigma points of P (eqs. 6–8), linear f = F."""
+    spread, Wc = weights
+    return sigma_covariance(np.einsum("ij,sjc->sic", F, sigma_deviations(P, spread)), Wc) + Q
+
+
+def sigma_update(P_prior: np.ndarray, H: np.ndarray, R_diag: np.ndarray, observed: np.ndarray,
+                 weights: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The gain K (n, p, C) through sigma points re-drawn from P⁻ (eqs. 9–12; zero columns for measurements not
+    ``observed`` (p, C)), linear h = H, and the posterior covariance P⁻ − K S Kᵀ, symmetrised."""
+    spread, Wc = weights
+    chi = sigma_deviations(P_prior, spread)  # re-drawn from (x⁻, P⁻), centred
+    dz = np.where(observed[None], np.einsum("ij,sjc->sic", H, chi), 0.0)  # Z − ẑ (eq. 9); missing: K column 0
+    S = sigma_covariance(dz, Wc) + R_diag  # eq. 10
+    Pxz = np.einsum("sc,sic,sjc->ijc", Wc, chi, dz)  # eq. 10
+    if H.shape[0] == 1:
+        K = Pxz / S[0, 0]  # K = P_xz S⁻¹ (eq. 12)
+    else:
+        K = np.linalg.solve(S.transpose(2, 0, 1), Pxz.transpose(2, 1, 0)).transpose(2, 1, 0)  # S symmetric
+    P = P_prior - np.einsum("ijc,jkc,lkc->ilc", K, S, K)  # eq. 11
+    return K, 0.5 * (P + P.transpose(1, 0, 2))
+
+
+def sigma_gain_recursion(kinds: np.ndarray, params: np.ndarray, P_start: np.ndarray,
+                         axis: StateSpaceModel) -> tuple[np.ndarray, int, np.ndarray]:
+    """The two-state UKF's affine coefficients (T, 6, G) = [(I − K H) F row-major, K] of G rows with frame
+    ``kinds`` (G, T), parameters [σ_w, σ_v, α, β, κ] (G, 5) and start covariance (2, 2, G), the frame from which
+    they stay constant, and the last posterior covariance — the contract of
+    :func:`filters.kalman_core.gain_recursion`, with the covariances of :func:`sigma_predict` and
+    :func:`sigma_update`."""
+    G, T = kinds.shape
+    if G == 1:
+        one = _sigma_recursion_one_row(kinds[0], params[0], P_start[:, :, 0], axis)
+        if one is not None:
+            return one
+    sigma_w, sigma_v, alpha, beta, kappa = params.T
+    F, H, b = axis.F, axis.H, axis.B[:, 0]
+    Q = np.outer(b, b)[:, :, None] * sigma_w**2
+    R = (sigma_v**2)[None, None]
+    weights = scaled_weights(2, alpha, beta, kappa)
+    coef = np.empty((T, 6, G))
+    settled = np.all(kinds == kinds[:, -1:], axis=1)
+    settled_from = np.where(settled, 0, T - np.argmax(kinds[:, ::-1] != kinds[:, -1:], axis=1)).max()
+    resets = np.any(kinds <= INIT, axis=0)
+    P = P_start.copy()
+    for n in range(T):
+        k = kinds[:, n]
+        K, P_new = sigma_update(sigma_predict(P, F, Q, weights), H, R, (k == UPDATE_Y)[None], weights)
+        coef[n, :4] = (F[:, :, None] - K[:, 0, None, :] * F[0, None, :, None]).reshape(4, G)  # (I − K H) F, H = [1, 0]
+        coef[n, 4:] = K[:, 0]
+        if resets[n]:
+            reset = k <= INIT
+            P_new[:, :, reset] = P_start[:, :, reset]
+            frame = coef[n]
+            frame[:, reset] = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 0.0])[:, None]  # x = [y, 0] (INIT)
+            frame[4, k == WAIT] = 0.0  # x = 0 (WAIT; output NaN)
+        if n % 8 == 7 and n >= settled_from and np.array_equal(P_new, P):  # steady: later frames repeat frame n
+            coef[n + 1:] = coef[n]
+            return coef, n, P_new
+        P = P_new
+    return coef, T, P
+
+
+def _sigma_recursion_one_row(kinds: np.ndarray, params: np.ndarray, P_start: np.ndarray,
+                             axis: StateSpaceModel) -> tuple[np.ndarray, int, np.ndarray] | None:
+    """:func:`sigma_gain_recursion` for a single row in Python floats (~30× faster than numpy calls on length-1
+    arrays: a long track with gaps runs the recursion on every frame). The same equations (Cholesky root of
+    (n + λ) P, five centred sigma points, weighted sums in order s = 0 … 4); agrees with the batched form to
+    rounding (tested). None if a covariance is not positive definite (the batched form then takes over)."""
+    sigma_w, sigma_v, alpha, beta, kappa = params.tolist()
+    spread, Wc = (w.ravel().tolist() for w in scaled_weights(2, *(np.array([v]) for v in (alpha, beta, kappa))))
+    s, (wc0, wi) = spread[0], Wc[:2]
+    (f00, f01), (f10, f11) = axis.F.tolist()
+    b0, b1 = axis.B[:, 0].tolist()
+    q00, q01, q11, r = sigma_w**2 * b0 * b0, sigma_w**2 * b0 * b1, sigma_w**2 * b1 * b1, sigma_v**2
+    s00, s01, s11 = P_start[0, 0].item(), P_start[0, 1].item(), P_start[1, 1].item()
+    p00, p01, p11 = s00, s01, s11
+    T = kinds.size
+    coef = np.empty((T, 6, 1))
+    out = coef[:, :, 0]
+    settled_from = 0 if np.all(kinds == kinds[-1]) else T - int(np.argmax(kinds[::-1] != kinds[-1]))
+
+    def covariance(a0: float, a1: float, c0: float, c1: float) -> tuple[float, float, float]:
+        """Σ W^c χ χᵀ of the centred points χ = [0, ±(a0, a1), ±(c0, c1)] (eqs. 4, 8, 10)."""
+        d = ((0.0, 0.0), (a0, a1), (c0, c1), (-a0, -a1), (-c0, -c1))
+        w = (wc0, wi, wi, wi, wi)
+        return (sum(wk * x * x for wk, (x, _) in zip(w, d)), sum(wk * x * y for wk, (x, y) in zip(w, d)),
+                sum(wk * y * y for wk, (_, y) in zip(w, d)))
+
+    def root(a00: float, a01: float, a11: float) -> tuple[float, float, float] | None:
+        """Cholesky root of (n + λ) [[a00, a01], [a01, a11]]: columns (l00, l10), (0, l11); None if not definite."""
+        if not s * a00 > 0.0:
+            return None
+        l00 = (s * a00) ** 0.5
+        l10 = s * a01 / l00
+        d = s * a11 - l10 * l10
+        return (l00, l10, d**0.5) if d > 0.0 else None
+
+    for n, k in enumerate(kinds.tolist()):
+        if (L := root(p00, p01, p11)) is None:
+            return None
+        l00, l10, l11 = L
+        e00, e01, e11 = covariance(f00 * l00 + f01 * l10, f10 * l00 + f11 * l10, f01 * l11, f11 * l11)
+        m00, m01, m11 = e00 + q00, e01 + q01, e11 + q11  # P⁻ (eqs. 6–8)
+        if k == UPDATE_Y:
+            if (U := root(m00, m01, m11)) is None:
+                return None
+            u00, u10, u11 = U  # sigma points re-drawn from P⁻; z = their first component
+            zz, zx, _ = covariance(u00, u10, 0.0, u11)  # Σ W^c dz², Σ W^c dz χ_1 (eqs. 9–10)
+            S = zz + r
+            k0, k1 = zz / S, zx / S
+            n00 = m00 - k0 * S * k0
+            n01 = 0.5 * ((m01 - k0 * S * k1) + (m01 - k1 * S * k0))
+            n11 = m11 - k1 * S * k1
+        else:
+            k0 = k1 = 0.0
+            n00, n01, n11 = m00, m01, m11
+        row = out[n]
+        if k <= INIT:
+            n00, n01, n11 = s00, s01, s11
+            row[:] = (0.0, 0.0, 0.0, 0.0, 1.0 if k == INIT else 0.0, 0.0)
+        else:
+            row[:] = (f00 - k0 * f00, f01 - k0 * f01, f10 - k1 * f00, f11 - k1 * f01, k0, k1)
+        if n % 8 == 7 and n >= settled_from and (n00, n01, n11) == (p00, p01, p11):
+            coef[n + 1:] = coef[n]
+            return coef, n, np.array([[n00, n01], [n01, n11]])[:, :, None]
+        p00, p01, p11 = n00, n01, n11
+    return coef, T, np.array([[p00, p01], [p01, p11]])[:, :, None]
+
+
+def unscented_filter(y: np.ndarray, kinds: np.ndarray, F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray,
                      x_start: np.ndarray, P_start: np.ndarray, weights: tuple[np.ndarray, ...]) -> np.ndarray:
-    """Batched UKF over C channels (channel axis last): measurements ``y`` (p, T, C) with NaN = missing (row 0
-    decides the frame ``kinds`` (C, T) of :func:`filters.kalman_core.frame_kinds`), ``fx``/``hx`` map sigma
-    points (S, n, C) to (S, n, C)/(S, p, C), ``Q`` (n, n, C), ``R`` (p, C) diagonal measurement variances,
-    start state/covariance (n, C)/(n, n, C), ``weights`` from :func:`scaled_weights`.
+    """Batched linear UKF over C channels (channel axis last), frame by frame: measurements ``y`` (p, T, C) with
+    NaN = missing (row 0 decides the frame ``kinds`` (C, T) of :func:`filters.kalman_core.frame_kinds`), transition
+    ``F`` (n, n), observation ``H`` (p, n), ``Q`` (n, n, C), ``R`` (p, C) diagonal measurement variances, start
+    state/covariance (n, C)/(n, n, C), ``weights`` from :func:`scaled_weights`. Means are propagated exactly
+    (x⁻ = F x, ẑ = H x⁻), covariances by :func:`sigma_predict` and :func:`sigma_update`.
     Returns posterior states (T, n, C) (NaN at WAIT frames) and the posterior state (n, C) and covariance
     (n, n, C) at the last frame (the start values for a channel still waiting there)."""
     p, T, C = y.shape
-    spread, Wm, Wc = weights
     x, P = x_start.copy(), P_start.copy()
     out = np.empty((T, x.shape[0], C))
     observed = ~np.isnan(y)
     y0 = np.where(observed, y, 0.0)
     R_diag = R[:, None] * np.eye(p)[:, :, None]
     for n in range(T):
-        x, P, _ = unscented_transform(fx(sigma_points(x, P, spread)), Wm, Wc)  # eqs. 7–8
-        P += Q
+        x, P = F @ x, sigma_predict(P, F, Q, weights)  # eqs. 6–8, x⁻ = F x for a linear f
         obs = observed[:, n].copy()
         kind = kinds[:, n]
         if np.any(kind <= INIT):  # WAIT: keep the start values; INIT: start at [y, 0, …], use only the rest of y
@@ -221,18 +361,7 @@ def unscented_filter(y: np.ndarray, kinds: np.ndarray, fx: Any, hx: Any, Q: np.n
             obs[0, reset] = False
             obs[:, kind == WAIT] = False
         if obs.any():
-            chi = sigma_points(x, P, spread)  # re-drawn from (x⁻, P⁻)
-            z_hat, _, dz = unscented_transform(hx(chi), Wm, Wc)  # eq. 9
-            dz = np.where(obs[None], dz, 0.0)  # missing components: no innovation, K column 0
-            S = np.einsum("sc,sic,sjc->ijc", Wc, dz, dz) + R_diag  # eq. 10
-            Pxz = np.einsum("sc,sic,sjc->ijc", Wc, chi - x[None], dz)  # eq. 10
-            if p == 1:
-                K = Pxz / S[0, 0]  # K = P_xz S⁻¹ (eq. 12)
-            else:
-                K = np.linalg.solve(S.transpose(2, 0, 1), Pxz.transpose(2, 1, 0)).transpose(2, 1, 0)  # S symmetric
-            innovation = np.where(obs, y0[:, n] - z_hat, 0.0)
-            x = x + np.einsum("ijc,jc->ic", K, innovation)  # eq. 11
-            P = P - np.einsum("ijc,jkc,lkc->ilc", K, S, K)  # eq. 11
-            P = 0.5 * (P + P.transpose(1, 0, 2))
+            K, P = sigma_update(P, H, R_diag, obs, weights)
+            x = x + np.einsum("ijc,jc->ic", K, np.where(obs, y0[:, n] - H @ x, 0.0))  # eq. 11, ẑ = H x⁻
         out[n] = x
     return np.where((kinds.T == WAIT)[:, None], np.nan, out), x, P

@@ -18,7 +18,6 @@ block (the fixed rule's gains repeat and are cached, as in training). No unit te
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import gymnasium as gym
@@ -26,6 +25,8 @@ import numpy as np
 
 import envs  # noqa: F401  (registers the environments)
 import filters
+from agents.cli import ArgumentParser, argument_errors, nonnegative_int, positive_int
+from envs.config import EnvConfig
 
 
 def rates(count: int, fn, repeat: int) -> tuple[float, float]:
@@ -39,15 +40,17 @@ def rates(count: int, fn, repeat: int) -> tuple[float, float]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(prog="bench_env.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("--backend", default="ufir_cmn", choices=filters.NAMES)
-    ap.add_argument("--episodes", type=int, default=1000, help="steps per timed block")
-    ap.add_argument("--candidates", type=int, default=256, help="actions per score() call")
-    ap.add_argument("--calls", type=int, default=10, help="score() calls per timed block")
-    ap.add_argument("--track-length", type=int, default=500)
-    ap.add_argument("--repeat", type=int, default=5, help="timed blocks per measurement")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--episodes", type=positive_int, default=1000, help="steps per timed block")
+    ap.add_argument("--candidates", type=positive_int, default=256, help="actions per score() call")
+    ap.add_argument("--calls", type=positive_int, default=10, help="score() calls per timed block")
+    ap.add_argument("--track-length", type=positive_int, default=500, help="frames per track (the env's limits)")
+    ap.add_argument("--repeat", type=positive_int, default=5, help="timed blocks per measurement")
+    ap.add_argument("--seed", type=nonnegative_int, default=0)
     args = ap.parse_args(argv)
+    with argument_errors(ap, "--track-length"):
+        EnvConfig(backend=args.backend, track_length=args.track_length)  # the env's own checks, before any work
 
     env = gym.make("bboxtune/FilterTune-v0", backend=args.backend, track_length=args.track_length)
     env.reset(seed=args.seed)

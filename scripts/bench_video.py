@@ -8,24 +8,28 @@ Prints rates only (speed is never asserted by the tests). Run on an idle machine
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
+from agents.cli import ArgumentParser, argument_errors, positive_int  # noqa: E402
 from envs.video.camera import background_shift  # noqa: E402
 from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
 from envs.video.synthetic import VideoRanges, synthetic_video  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--videos", type=int, default=5)
-    p.add_argument("--frames", type=int, default=200)
+    p = ArgumentParser(prog="bench_video.py", description=__doc__.split("\n\n")[0])
+    p.add_argument("--videos", type=positive_int, default=5, help="synthetic videos (default 5)")
+    p.add_argument("--frames", type=positive_int, default=200, help="frames per video (default 200)")
     args = p.parse_args(argv)
     ranges = VideoRanges(n_frames=args.frames)
+    with argument_errors(p, "--frames"):
+        ranges.sample(np.random.default_rng(0))  # the scenario's own checks (frame count), before any work
     start = time.perf_counter()
     videos = [list(synthetic_video(2_000_000 + i, ranges)) for i in range(args.videos)]
     render = (time.perf_counter() - start) / args.videos

@@ -6,16 +6,17 @@ Reads ``--otb-root`` (else ``$OTB_ROOT``) in any layout :class:`envs.otb.OTBData
 outputs under ``<root>/trackers/<Tracker>/<Seq>.txt`` (or ``--trackers-root``). Conventions are those of
 ``envs.metrics`` (xywh, frame 1 counts, missing ground truth excluded, missing predictions are failures).
 ``--json`` prints only ``{tracker: {"success_auc": float, "precision20": float, "n_sequences": int}}``.
-A malformed file ends the run with exit status 2 and one line naming the file and line.
+A malformed file ends the run with exit status 2 and one line naming the file and line (reading is linear in
+the file sizes; limits in :mod:`envs.otb_io`); so does a bad command line.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import sys
 
+from agents.cli import ArgumentParser
 from envs.metrics import score_sequences
 from envs.otb import OTBDataset
 
@@ -36,7 +37,7 @@ def evaluate(dataset: OTBDataset, trackers: list[str]) -> dict[str, dict[str, fl
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = ArgumentParser(prog="otb_eval.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("--otb-root", default=None, help="OTB data folder or OTB100.json (default: $OTB_ROOT)")
     parser.add_argument("--trackers-root", default=None,
                         help="folder of <Tracker>/<Seq>.txt (default: <root>/trackers)")

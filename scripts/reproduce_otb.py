@@ -249,3 +249,14 @@ def _suv_claims(res: OTBResult) -> str:
 
 def _verdict(agrees: bool, why: str) -> str:
     return ("agrees" if agrees else "**differs**") + (f" ({why})" if why else "")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run this part alone (``reproduce.py`` runs every part): see ``--help``."""
+    import reproduce  # late: reproduce imports this module
+
+    return reproduce.main(argv, part="otb")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

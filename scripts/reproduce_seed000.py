@@ -8,7 +8,7 @@ statistics, so p, q do not touch it: ``ufir`` runs at the white-noise N_opt = 20
 at the paper's N_opt(ψ) (20 → 30 linearly up to ψ = 0.6, then linear in 1/(1 − ψ) up to 100 at ψ = 0.95, our
 reading of "grows nonlinearly"). Errors are position RMSEs pooled over the Monte Carlo tracks and over frames
 250 … 1999 (``BURN_IN``: steady state). Fig. 2 is only a plot, so the paper's claims are compared, not values;
-the last column is the analytic steady state of /work/shared/notes/filters-equations.md §4.
+the last column is the analytic steady state of ``docs/notes/filters-equations.md``.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ SCENARIO = PRESETS["seed000_two_state"]
 BURN_IN = 250  # frames left out of every RMSE (start-up of KF and of FIR horizons up to 250)
 PAPER_NOPT = {0.0: 20, 0.6: 30, 0.95: 100}  # seed 000 §II-D: N_opt(ψ) anchors
 ERROR_FACTORS = ((1.0, 1.0), (0.5, 2.0), (2.0, 0.5), (0.5, 0.5), (2.0, 2.0))  # (p, q): p²Q, q²R
-# /work/shared/notes/filters-equations.md §4: analytic steady-state position RMSE of this set-up
+# docs/notes/filters-equations.md: analytic steady-state position RMSE of this set-up
 # ψ: (N_opt of UFIR-CMN, UFIR-CMN at N_opt, UFIR at N = 20, KF-CMN)
 NOTES = {0.0: (20, 1.966, 1.966, 1.881), 0.2: (22, 2.275, 2.302, 2.178), 0.4: (26, 2.744, 2.861, 2.629),
          0.5: (28, 3.087, 3.296, 2.960), 0.6: (31, 3.562, 3.914, 3.418), 0.7: (36, 4.275, 4.849, 4.107),
@@ -159,7 +159,7 @@ def figure_nopt(res: NoptResult) -> dict[str, plt.Figure]:
     grid = np.linspace(0, 0.95, 96)
     ax_o.plot(grid, paper_horizon(grid), "k--", label="paper N_opt(ψ) (our interpolation)")
     ax_o.plot(list(PAPER_NOPT), list(PAPER_NOPT.values()), "ks", label="paper anchors 20 / 30 / 100")
-    ax_o.plot(list(NOTES), [v[0] for v in NOTES.values()], "g^", label="notes §4 analytic N_opt")
+    ax_o.plot(list(NOTES), [v[0] for v in NOTES.values()], "g^", label="notes: analytic N_opt")
     ax_o.set(xlabel="ψ", ylabel="N_opt", yscale="log", title="N_opt(ψ) of UFIR-CMN")
     ax_o.grid(alpha=0.3, which="both")
     ax_o.legend(fontsize=8)
@@ -178,7 +178,7 @@ def section_fig2(res: Fig2Result) -> Section:
                      fmt(r["kf", 2, .5][i]),
                      f"{notes[3]:.2f} / {notes[2]:.2f}" if notes else "—"])
     table = md_table(["ψ", "KF", "KF-CMN", "UFIR N=20", "UFIR-CMN", "N used", "KF-CMN p=.5 q=2",
-                      "KF-CMN p=2 q=.5", "KF p=.5 q=2", "KF p=2 q=.5", "notes §4: KF-CMN / UFIR N=20"], rows)
+                      "KF-CMN p=2 q=.5", "KF p=.5 q=2", "KF p=2 q=.5", "notes: KF-CMN / UFIR N=20"], rows)
     return Section("seed 000 Fig. 2: RMSE vs ψ", table + "\n" + _fig2_claims(res), {})
 
 
@@ -242,7 +242,7 @@ def section_nopt(res: NoptResult) -> Section:
     text = ("Grid search: UFIR-CMN at every candidate N on the same Monte Carlo tracks per ψ (per-track horizon "
             f"arrays), position RMSE over frames ≥ {BURN_IN}; N_opt = the argmin, the band = every N within 1 % of "
             "the minimum (the optimum is flat, so the argmin moves with the Monte Carlo noise). 'notes' = the "
-            "analytic steady-state values of /work/shared/notes/filters-equations.md §4; KF-CMN = exact "
+            "analytic steady-state values of `docs/notes/filters-equations.md`; KF-CMN = exact "
             "statistics on the same tracks (the optimal filter).\n\n")
     return Section("seed 000: N_opt(ψ) of UFIR-CMN", text + md_table(header, rows), {})
 
@@ -250,3 +250,14 @@ def section_nopt(res: NoptResult) -> Section:
 def _verdict(agrees: bool, why: str) -> str:
     word = "agrees" if agrees else "**differs**"
     return f"{word}: {why}" if why else word
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run this part alone (``reproduce.py`` runs every part): see ``--help``."""
+    import reproduce  # late: reproduce imports this module
+
+    return reproduce.main(argv, part="seed000")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

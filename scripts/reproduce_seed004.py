@@ -121,3 +121,14 @@ def section_table1(res: Table1Result) -> Section:
 
 def _verdict(agrees: bool, why: str) -> str:
     return ("agrees" if agrees else "**differs**") + f" ({why})"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run this part alone (``reproduce.py`` runs every part): see ``--help``."""
+    import reproduce  # late: reproduce imports this module
+
+    return reproduce.main(argv, part="seed004")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

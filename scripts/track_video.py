@@ -11,13 +11,18 @@ N = N_opt; :mod:`envs.video.source`) or, with ``--tuned MODEL`` (a ``tuned.json`
 directory), the tuner's choice; ``--compensate`` estimates the camera motion from the frames and compensates
 it (:mod:`envs.video.camera`; UKF: seed 003 eq. 17, other back ends: camera-velocity input, eq. 18).
 
-Writes to ``--out``: ``frames.csv`` (per frame: raw and filtered x, y, w, h [and ground truth, IoUs]),
+Writes to ``--out`` (a new or empty folder, nothing is overwritten; default ``runs/track_video/<name>`` with
+name ``synthetic-<seed>``, the video's stem or the sequence): ``frames.csv`` (per frame: raw and filtered x, y, w, h [and ground truth, IoUs]),
 ``summary.json`` (``raw_success_auc``, ``filtered_success_auc``, precision@20 px and the (cx, cy, w, h) RMSE
 over the frames with a detection when ground truth is known, ``n_frames``, ``n_missing``, parameters), and
 ``video.mp4`` (truth green, detection red, filtered blue; ``strip.png`` of 8 frames instead if no MP4 codec is
 available). All files are written atomically.
 Box coordinates: 0-based for ``--synthetic`` / ``--video``; 1-based OTB coordinates for ``--frames``
 (``--init`` is read in the same convention).
+Arguments are checked before any frame is read: a bad one gives one line naming it (exit status 2). A
+``train.py`` run directory given to ``--tuned`` is loaded without unpickling anything (``agents.safe_load``);
+an old run whose statistics are only in ``vecnormalize.pkl`` needs ``--trust-pickle`` (pickles can run code:
+only for runs you trust).
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
@@ -35,6 +41,10 @@ from tqdm import tqdm  # noqa: E402
 from video_common import write_atomic, write_csv, write_json  # noqa: E402
 
 import filters  # noqa: E402
+from agents.cli import (ArgumentParser, box_xywh, existing_dir, existing_file, int_range, nonnegative_int,  # noqa: E402
+                        out_dir)
+from agents.run_files import RunError  # noqa: E402
+from agents.runs import check_free  # noqa: E402
 from envs import metrics  # noqa: E402
 from envs.actions import ACCEPTS  # noqa: E402
 from envs.boxes import cxcywh_to_xywh, xywh_to_cxcywh  # noqa: E402
@@ -49,26 +59,29 @@ from envs.video.tuning import load_tuner, rule_params  # noqa: E402
 _GREEN, _RED, _BLUE = (40, 170, 40), (40, 40, 220), (230, 80, 40)  # BGR
 
 
-def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+def build_parser() -> ArgumentParser:
+    p = ArgumentParser(prog="track_video.py", description=__doc__.split("\n\n")[0],
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter, allow_abbrev=False)
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--synthetic", action="store_true", help="a synthetic video (seed --seed)")
-    src.add_argument("--video", help="a video file")
-    src.add_argument("--frames", help="a folder of numbered images (OTB layout <Video>[/img]/0001.jpg)")
-    p.add_argument("--init", help="initial box x,y,w,h (default: the first ground-truth box)")
+    src.add_argument("--video", type=existing_file, help="a video file")
+    src.add_argument("--frames", type=existing_dir, help="a folder of numbered images (OTB layout <Video>[/img]/0001.jpg)")
+    p.add_argument("--init", type=box_xywh, help="initial box x,y,w,h (default: the first ground-truth box)")
     p.add_argument("--detector", default="template", choices=DETECTORS)
     p.add_argument("--filter", default=None, choices=filters.NAMES,
                    help="back end (default: the tuner's, else ufir_cmn)")
     p.add_argument("--tuned", default=None, help="tuned.json or train.py run directory choosing the parameters")
+    p.add_argument("--trust-pickle", action="store_true",
+                   help="--tuned RUN_DIR: accept an old run's pickled vecnormalize.pkl (pickles can run code)")
     p.add_argument("--compensate", action="store_true", help="estimate and compensate camera motion")
-    p.add_argument("--n-frames", type=int, default=200, help="--synthetic: frames")
+    p.add_argument("--n-frames", type=int_range(2, 10**6), default=200, help="--synthetic: frames")
     p.add_argument("--sequence", default=None, help="--frames: OTB sequence name (default: the folder name)")
-    p.add_argument("--otb-root", default=None, help="--frames: OTB data folder with sequences.csv (default $OTB_ROOT)")
-    p.add_argument("--seed", type=int, default=0, help="synthetic video seed")
-    p.add_argument("--out", default="runs/track_video", help="output folder")
+    p.add_argument("--otb-root", type=existing_dir, default=None,
+                   help="--frames: OTB data folder with sequences.csv (default $OTB_ROOT)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="synthetic video seed")
+    p.add_argument("--out", type=out_dir, default=None, help="output folder, new or empty (default runs/track_video/<name>)")
     p.add_argument("--no-video", action="store_true", help="skip the annotated MP4")
-    return p.parse_args(argv)
+    return p
 
 
 def open_source(args: argparse.Namespace) -> tuple[object, float, np.ndarray | None, float, str]:
@@ -86,15 +99,9 @@ def open_source(args: argparse.Namespace) -> tuple[object, float, np.ndarray | N
     return frames, frames.fps, gt, 1.0, name
 
 
-def parse_box(text: str, origin: float) -> np.ndarray:
-    try:
-        box = np.array([float(v) for v in text.split(",")])
-    except ValueError:
-        box = np.zeros(0)
-    if box.shape != (4,) or not np.all(np.isfinite(box)):
-        raise SystemExit(f"--init {text!r}: expected four numbers x,y,w,h")
-    box[:2] -= origin
-    return box
+def user_box(box: tuple[float, float, float, float], origin: float) -> np.ndarray:
+    """``--init`` (in the source's coordinate convention) as a 0-based x, y, w, h array."""
+    return np.array(box, dtype=float) - [origin, origin, 0.0, 0.0]
 
 
 def detect(frames, detector_name: str, init: np.ndarray, compensate: bool) -> tuple[np.ndarray, np.ndarray | None]:
@@ -129,20 +136,30 @@ def scores(raw: np.ndarray, est: np.ndarray, truth: np.ndarray) -> dict[str, flo
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
-    out = Path(args.out)
-    frames, fps, gt, origin, name = open_source(args)
-    if args.init is None and (gt is None or not np.all(np.isfinite(gt[0]))):
-        raise SystemExit("--init x,y,w,h is required when the first frame has no ground truth")
-    init = parse_box(args.init, origin) if args.init else gt[0]
-    tuner = load_tuner(args.tuned) if args.tuned else None
-    backend = args.filter or (tuner.backend if tuner else "ufir_cmn")
-    if tuner is not None and tuner.backend != backend:
-        raise SystemExit(f"--filter {backend} differs from the tuner's back end {tuner.backend}")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if (args.sequence or args.otb_root) and not args.frames:
+        parser.error("--sequence and --otb-root apply to --frames only")
+    try:
+        frames, fps, gt, origin, name = open_source(args)
+        out = args.out or Path("runs/track_video") / name
+        check_free(out, "choose another --out")
+        if args.init is None and (gt is None or not np.all(np.isfinite(gt[0]))):
+            raise RunError("--init x,y,w,h is required when the first frame has no ground truth")
+        init = user_box(args.init, origin) if args.init else gt[0]
+        tuner = load_tuner(args.tuned, trust_pickle=args.trust_pickle) if args.tuned else None
+        backend = args.filter or (tuner.backend if tuner else "ufir_cmn")
+        if tuner is not None and tuner.backend != backend:
+            raise RunError(f"--filter {backend} differs from the tuner's back end {tuner.backend}")
+    except (RunError, ValueError, OSError) as err:
+        parser.error(str(err))
     print(f"{name}: detector {args.detector}, filter {backend}, seed {args.seed}")
 
     t0 = time.time()
-    y_xywh, shift = detect(frames, args.detector, init, args.compensate)
+    try:
+        y_xywh, shift = detect(frames, args.detector, init, args.compensate)
+    except ValueError as err:  # an unreadable image or video frame, named by the reader
+        parser.error(str(err))
     T = len(y_xywh)
     truth = gt[:T] if gt is not None else np.full((T, 4), np.nan)
     source = VideoSource(EnvConfig(track_length=max(T, 8)), VideoSettings(detector=args.detector))

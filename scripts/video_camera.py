@@ -15,7 +15,9 @@ frames (:func:`envs.video.camera.background_shift`). Compared at the same filter
 
 RMSE: centre (cx, cy) error in px over all frames. Writes ``results.csv``, ``summary.json`` and
 ``camera.png`` (mean RMSE vs smoothing; per-video RMSE at the rule; the cx error over time of the video with
-the strongest camera motion at ``--example-smoothing``).
+the strongest camera motion at ``--example-smoothing``) into ``--out``, created if missing; in an existing
+folder these three files are replaced and every other file is left alone. The command line is checked before
+any work: a bad value exits 2 with one line naming the flag, and nothing is written.
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ from tqdm import tqdm  # noqa: E402
 from video_common import bootstrap_ci, write_atomic, write_csv, write_json  # noqa: E402
 
 import filters  # noqa: E402
+from agents.cli import (ArgumentParser, argument_errors, nonnegative_int, out_dir,  # noqa: E402
+                        positive_float, positive_int)
 from envs.config import EnvConfig  # noqa: E402
 from envs.video.camera import UKF_CAMERA, background_shift, run_compensated  # noqa: E402
 from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
@@ -46,21 +50,27 @@ METHODS = ("kf", "kf+input", "ukf", "ukf8", "kf+true")
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("--n-videos", type=int, default=12)
-    p.add_argument("--frames", type=int, default=200)
+    p = ArgumentParser(prog="video_camera.py", description=__doc__.split("\n\n")[0],
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--n-videos", type=positive_int, default=12, help="videos (generator seeds 3 000 000 + i)")
+    p.add_argument("--frames", type=positive_int, default=200, help="frames per video (the env's limits)")
     p.add_argument("--detector", default="template", choices=DETECTORS)
-    p.add_argument("--smoothing", type=float, nargs="+", default=[0.3, 1.0, 3.0, 10.0, 30.0],
+    p.add_argument("--smoothing", type=positive_float, nargs="+", default=[0.3, 1.0, 3.0, 10.0, 30.0],
                    help="factors on the rule's σ_v (1 = the rule)")
-    p.add_argument("--sigma-c", type=float, default=UKF_CAMERA["sigma_c"],
+    p.add_argument("--sigma-c", type=positive_float, default=UKF_CAMERA["sigma_c"],
                    help="ukf8: camera acceleration noise std, px/s²")
-    p.add_argument("--sigma-u", type=float, default=UKF_CAMERA["sigma_u"],
+    p.add_argument("--sigma-u", type=positive_float, default=UKF_CAMERA["sigma_u"],
                    help="ukf8: std of the measured background velocity, px/s")
-    p.add_argument("--example-smoothing", type=float, default=10.0, help="σ_v factor of the example-error panel")
-    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap intervals")
-    p.add_argument("--out", default="runs/video_camera")
-    return p.parse_args(argv)
+    p.add_argument("--example-smoothing", type=positive_float, default=10.0,
+                   help="σ_v factor of the example-error panel")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the bootstrap intervals")
+    p.add_argument("--out", type=out_dir, default="runs/video_camera",
+                   help="output folder (created if missing; its three result files are replaced)")
+    args = p.parse_args(argv)
+    with argument_errors(p, "--frames"):  # the env's and the generator's own checks, before any work
+        EnvConfig(track_length=args.frames)
+        VideoRanges(n_frames=args.frames).sample(np.random.default_rng(0))
+    return args
 
 
 def centre_rmse(est: np.ndarray, truth: np.ndarray) -> float:
@@ -101,10 +111,10 @@ def main(argv: list[str] | None = None) -> int:
     ranges = VideoRanges(n_frames=args.frames, camera_probability=1.0)
     results = [compare(SEED_OFFSET + i, args, ranges) for i in tqdm(range(args.n_videos), desc="videos")]
     rows = [(r["seed"], k, m, r["rmse"][k][m]) for r in results for k in args.smoothing for m in METHODS]
-    out = Path(args.out)
+    out: Path = args.out
     write_csv(out / "results.csv", ("seed", "sigma_v_factor", "method", "centre_rmse"), rows)
     rng = np.random.default_rng(args.seed)
-    summary = {"args": vars(args), "shift_error_px_mean": float(np.mean([r["shift_error_px"] for r in results])),
+    summary = {"args": {**vars(args), "out": str(out)}, "shift_error_px_mean": float(np.mean([r["shift_error_px"] for r in results])),
                "by_smoothing": {}}
     for k in args.smoothing:
         rm = {m: np.array([r["rmse"][k][m] for r in results]) for m in METHODS}

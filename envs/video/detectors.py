@@ -15,8 +15,10 @@ areas (pixel (i, j) covers [i, i + 1) × [j, j + 1)), float64 (4,). Frames are B
 | ``sift``, ``orb`` | keypoints matched to the initial box (ratio test), RANSAC homography → box (or similarity) |
 
 The last four search near the last found box (``search`` × the box's larger side on each side), widening
-the window by that margin for every frame missed since (at most ``MAX_WIDENING`` times); the background
-subtractors look at the whole frame.
+the window by that margin for every frame missed since (at most ``MAX_WIDENING`` times); once
+``redetect_after`` frames in a row found nothing (default ``MAX_WIDENING + 1``), they re-detect: the window is
+the whole frame until the object is found again, so a lost detector never stays stuck at a stale position.
+The background subtractors look at the whole frame.
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ class Detector(ABC):
     """A stateful per-frame detector: :meth:`start` once, then :meth:`detect` on every later frame."""
 
     name: ClassVar[str]
+    redetect_after: int = MAX_WIDENING + 1  # frames missed in a row after which the search window is the whole frame
 
     def start(self, frame: np.ndarray, box: np.ndarray) -> None:
         """Initialise on the first frame with the initial xywh box (must lie inside the frame, w, h >= 4)."""
@@ -92,7 +95,10 @@ class Detector(ABC):
     def _detect(self, frame: np.ndarray) -> np.ndarray: ...
 
     def window(self, shape: tuple[int, ...], search: float) -> tuple[int, int, int, int]:
-        """Integer search region (x0, y0, x1, y1) around the last found box, clipped to the frame."""
+        """Integer search region (x0, y0, x1, y1) around the last found box, clipped to the frame; the whole
+        frame once ``redetect_after`` frames in a row found nothing (re-detection after loss)."""
+        if self.missed >= self.redetect_after:
+            return 0, 0, shape[1], shape[0]
         x, y, w, h = self.last
         m = search * max(w, h) * (1 + min(self.missed, MAX_WIDENING))
         x0, y0 = max(int(np.floor(x - m)), 0), max(int(np.floor(y - m)), 0)

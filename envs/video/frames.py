@@ -67,9 +67,11 @@ class VideoFile:
 def video_file(path: str | os.PathLike) -> VideoFile:
     """Open a video file (ValueError if OpenCV cannot decode it)."""
     path = Path(path)
+    if not path.is_file():  # checked first: OpenCV blocks forever on a named pipe
+        raise ValueError(f"{path}: not a readable video file")
     cap = cv2.VideoCapture(str(path))
     try:
-        if not path.is_file() or not cap.isOpened():
+        if not cap.isOpened():
             raise ValueError(f"{path}: not a readable video file")
         n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
         fps = float(cap.get(cv2.CAP_PROP_FPS)) or 30.0
@@ -88,7 +90,7 @@ def image_folder(folder: str | os.PathLike, *, first_frame: int = 1, n_frames: i
     if not images.is_dir():
         raise ValueError(f"{folder}: not a folder of images")
     numbered = {int(p.stem): p for p in images.iterdir()
-                if p.suffix.lower() in IMAGE_EXTENSIONS and re.fullmatch(r"\d+", p.stem)}
+                if p.suffix.lower() in IMAGE_EXTENSIONS and re.fullmatch(r"[0-9]+", p.stem) and p.is_file()}
     if not numbered:
         raise ValueError(f"{images}: no numbered images ({', '.join(IMAGE_EXTENSIONS)})")
     if first_frame < 1:

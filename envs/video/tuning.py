@@ -6,7 +6,7 @@ a tuned action means the same thing relative to every episode's nominal σ as it
 * :func:`grid_tune` — one action for a whole video set: the point of a regular grid over [-1, 1]^d with the
   best mean score over *training* episodes (no test data); saved/loaded as JSON (:class:`FixedTuner`).
 * :func:`load_tuner` — a ``tuned.json`` from :func:`grid_tune` or a ``scripts/train.py`` run directory
-  (``config.yml`` + ``model.zip`` [+ ``vecnormalize.pkl``], loaded by ``agents.runs.SB3Policy``): the policy
+  (``config.yml`` + ``model.zip`` [+ ``vecnormalize.json``], loaded by ``agents.runs.SB3Policy``): the policy
   sees the env's observation features of each episode (:func:`envs.features.measurement_features`) and its
   back end and ``tune`` come from the run's ``env_kwargs``.
 """
@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from envs import textfile
 from envs.actions import DEFAULT_TUNE, ActionMap
 from envs.features import measurement_features
 from envs.scoring import run_positions, score_estimates
@@ -69,14 +70,17 @@ class FixedTuner(Tuner):
     def act(self, ep: Episode) -> np.ndarray:
         return self.action
 
-    def save(self, path: str | os.PathLike, **info: Any) -> None:
-        """Write ``{"backend", "tune", "horizon_max", "sigma_decades", "action", **info}`` as JSON."""
+    def document(self, **info: Any) -> dict[str, Any]:
+        """``{"backend", "tune", "horizon_max", "sigma_decades", "action", **info}``: what :meth:`save` writes."""
         a = self.actions
-        doc = {"backend": self.backend, "tune": list(a.tune), "horizon_max": a.horizon_max,
-               "sigma_decades": a.sigma_decades, "action": self.action.tolist(), **info}
+        return {"backend": self.backend, "tune": list(a.tune), "horizon_max": a.horizon_max,
+                "sigma_decades": a.sigma_decades, "action": self.action.tolist(), **info}
+
+    def save(self, path: str | os.PathLike, **info: Any) -> None:
+        """Write :meth:`document` as JSON (readable by :func:`load_tuner`)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(doc, indent=2))
+        path.write_text(json.dumps(self.document(**info), indent=2))
 
 
 class PolicyTuner(Tuner):
@@ -109,24 +113,40 @@ def grid_tune(episodes: Sequence[Episode], backend: str, points: int = 9, metric
     return FixedTuner(backend, grid[best], amap), float(total[best] / max(len(episodes), 1))
 
 
-def load_tuner(path: str | os.PathLike) -> Tuner:
+def load_tuner(path: str | os.PathLike, *, trust_pickle: bool = False) -> Tuner:
     """A :class:`FixedTuner` from a JSON file (or a folder holding ``tuned.json``), or a
-    :class:`PolicyTuner` from a ``scripts/train.py`` run directory (has ``config.yml``)."""
+    :class:`PolicyTuner` from a ``scripts/train.py`` run directory (has ``config.yml``; loaded without
+    unpickling, ``trust_pickle`` as in ``agents.runs.SB3Policy.load``). ValueError naming the file otherwise."""
     path = Path(path)
     if path.is_dir() and (path / "config.yml").is_file():
         from agents.runs import SB3Policy, load_config  # lazy: envs must not need agents otherwise
         from envs.config import EnvConfig
 
-        cfg = EnvConfig.from_kwargs(**load_config(path)["env_kwargs"])
+        run_cfg = load_config(path)
+        try:
+            cfg = EnvConfig.from_kwargs(**run_cfg["env_kwargs"])
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"{path / 'config.yml'}: env_kwargs: {err}") from None
         amap = action_map(cfg.backend, cfg.tune, cfg.horizon_max, cfg.sigma_decades)
-        return PolicyTuner(SB3Policy.load(path), cfg.backend, amap)
+        return PolicyTuner(SB3Policy.load(path, trust_pickle=trust_pickle), cfg.backend, amap)
     file = path / "tuned.json" if path.is_dir() else path
     if not file.is_file():
         raise ValueError(f"--tuned {path}: neither a train.py run directory (config.yml) nor a tuned.json file")
-    doc = json.loads(file.read_text())
+    try:
+        doc = json.loads(textfile.read_text(file))
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{file}:{err.lineno}:{err.colno}: invalid JSON: {err.msg}") from None
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as err:
+        raise ValueError(f"{file}: not a readable JSON file ({err})") from None
+    if not isinstance(doc, dict):
+        raise ValueError(f"{file}: expected a JSON object (a tuned.json from grid_tune)")
+    if "backend" in doc and doc["backend"] not in DEFAULT_TUNE:
+        raise ValueError(f"{file}: backend={doc['backend']!r}; allowed: {sorted(DEFAULT_TUNE)}")
     try:
         amap = action_map(doc["backend"], doc["tune"], doc["horizon_max"], doc["sigma_decades"])
         return FixedTuner(doc["backend"], np.asarray(doc["action"], dtype=float), amap)
     except KeyError as err:
         raise ValueError(f"{file}: missing key {err}; a tuned.json has backend, tune, horizon_max, "
                          "sigma_decades, action") from None
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{file}: {err}") from None

@@ -32,7 +32,7 @@ def test_oracle_never_worse_than_rule_or_informed_rule(env: gym.Env) -> None:
 
 def test_rule_true_sigma_uses_the_scenario(env: gym.Env) -> None:
     obs, _ = env.reset(options={"noise_seed": 5})
-    meta = env.unwrapped.episode.meta
+    meta = {**env.unwrapped.episode.meta, **env.unwrapped.episode.scenario}  # tau; the true ψ, σ
     params = env.unwrapped.score(RuleTrueSigmaPolicy().act(obs, env)[None])["params"]
     assert params["psi"][0] == pytest.approx(meta["psi"])
     if "sigma_w" in env.unwrapped.action_map.tune:  # kf_cmn: σ_w and σ_v = σ_ξ are set too

@@ -166,3 +166,16 @@ def test_mismatched_sequences_raise_naming_both_sides() -> None:
         success_auc(np.zeros((3, 4)), np.zeros((5, 4)))
     with pytest.raises(ValueError, match="est .* and truth .* must be sequences"):
         rmse(np.zeros(4), np.zeros((2, 4)))
+
+
+def test_equal_non_integer_boxes_never_pass_the_iou_threshold_one():
+    """Rounding can make the IoU of two equal 2-decimal boxes 1 + 1e-14; it is clipped to 1, so a perfect
+    estimate scores 20/21 of the success plot (IoU > 1.0 never holds) in metrics and in the fused scorer."""
+    from envs.boxes import xywh_to_cxcywh
+    from envs.scoring import score_estimates
+
+    boxes = np.round(np.random.default_rng(0).uniform(1.0, 300.0, (5000, 4)), 2)
+    assert iou(boxes, boxes).max() <= 1.0
+    assert success_auc(boxes, boxes) == pytest.approx(20 / 21, abs=0)
+    centre = xywh_to_cxcywh(boxes)
+    assert score_estimates(centre[None], centre)["success_auc"][0] == pytest.approx(20 / 21, abs=0)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from envs.otb import OTBDataset, resolve_root, split, video_of
-from envs.otb_io import parse_boxes, read_boxes
+from envs.otb_io import MAX_FILE_BYTES, parse_boxes, read_boxes
 
 OTB_ROOT = os.environ.get("OTB_ROOT")
 needs_otb = pytest.mark.skipif(not OTB_ROOT, reason="OTB_ROOT is unset (CI: OTB_ROOT=../shared/data/otb)")
@@ -33,6 +33,9 @@ def write(path: Path, content: str | bytes) -> Path:
         "70 51 107 87\n71  50.5 106 88\n-3 2 10 12\n",  # spaces
         "70, 51, 107, 87\r\n71 ,50.5,106,88\r\n-3,2,10,12\r\n\r\n",  # comma+space, CRLF, trailing blank line
         "\ufeff70,51,107,87\n71\t50.5\t106\t88\n-3 2 1e1 1.2E1\n",  # BOM, one kind per line, exponents
+        "+70,51.,107,87\n71,50.5,106,88\n-3,2,10,12 \n",  # sign, point without decimals, last line ends with a space
+        "70,51,107,87\n71,50.5,106,88\n-3,2,10,12\n\n \n",  # blank lines (also spaces) only at the end
+        "70.0e0,0051,1070e-1,.87e2\n7.1e1,50.5,106,88\n-3,2,10,12",  # exponents, leading zeros, leading point
     ],
 )
 def test_box_text_variants_parse_identically(tmp_path, text):
@@ -67,6 +70,23 @@ def test_zero_size_box_is_a_logged_missing_frame(tmp_path, caplog):
         (b"1,2,3,4\n1,2,3,4\n1,2,\xff3,4\n", 3, "not UTF-8"),
         ("1;2;3;4\n", 1, "expected 4 values"),
         ("1,2,3,4\n1,2,3,0x10\n", 2, "'0x10' is not a number"),
+        ("1,2,3,4\n1_0,2,3,4\n", 2, "'1_0' is not a number"),  # Python's float() reads 10
+        ("1,2,3,4\n1,\u0663,3,4\n", 2, "is not a number"),  # Arabic-Indic 3: float() reads 3
+        ("1,2,3,4\n1,2,3,\uff14\n", 2, "is not a number"),  # full-width 4
+        ("1,2,3,4\n1,2,3,4\n-inf,2,3,4\n", 3, "non-finite value '-inf'"),
+        ("1,2,3,4\n1,2,Infinity,4\n", 2, "non-finite value 'Infinity'"),
+        ("1,2,3,4\n1,2,3,1e999\n", 2, "overflows"),
+        ("1,2,3,4\n1,2,3,4e\n", 2, "'4e' is not a number"),
+        ("1,2,3,4\n1,2,3,--4\n", 2, "'--4' is not a number"),
+        ("1,2,3,4\n1,2,3,.\n", 2, "'.' is not a number"),
+        ("1,2,3,4\n1,2,3,\n", 2, "'' is not a number"),
+        ("1,2,3,4\n1,\u00a02,3,4\n", 2, "is not a number"),  # no-break space is not a separator
+        ("1 2 3 4\n1\u20032 3 4\n", 2, "expected 4 values"),  # nor is an em space
+        ("1,2,3,4\n1,2,3," + "4" * 65 + "\n", 2, "too long for a number"),
+        ("1,2,3,4\n1,2,3,4 5\n", 2, "mixes comma and whitespace"),
+        ("1,2,3,4\n" + "1," * 600 + "\n", 2, "line is 1200 characters long; allowed at most 1024"),
+        ("1,2,3,4\n" + "7" * 5_000_000 + "\n1,2,3,4\n", 2, "line is 5000000 characters long"),
+        ("1,2,3,4\n \n1,2,3,4\n", 2, "blank line"),
     ],
 )
 def test_malformed_box_text_names_file_and_line(tmp_path, content, line, message):
@@ -74,6 +94,22 @@ def test_malformed_box_text_names_file_and_line(tmp_path, content, line, message
     with pytest.raises(ValueError, match=message) as err:
         read_boxes(path)
     assert str(err.value).startswith(f"{path}:{line}:")
+
+
+@pytest.mark.parametrize("line", [999, 1000, 1001, 2000, 2500])
+@pytest.mark.parametrize("bad, message", [("", "blank line"), ("1,2,3", "expected 4 values"), ("1,2,3,4,", "got 5")])
+def test_bad_line_at_a_block_boundary_of_the_fallback_is_named(line, bad, message):
+    lines = ["70,51,107,87"] * 2500 + ["1, 2, 3, 4"]  # the last line sends the file to the checked fallback
+    lines[line - 1] = bad
+    with pytest.raises(ValueError, match=rf"^f:{line}: .*{message}"):
+        parse_boxes("\n".join(lines) + "\n", "f")
+
+
+def test_fallback_blocks_keep_every_row():
+    rows = np.arange(4 * 2345, dtype=float).reshape(-1, 4) + 1
+    lines = [",".join(f"{v:g}" for v in row) for row in rows]
+    lines[1500] = lines[1500].replace(",", " , ")  # one valid line the vectorised path does not take
+    np.testing.assert_array_equal(parse_boxes("\n".join(lines), "f"), rows)
 
 
 def test_box_count_must_match_sequences_csv(tmp_path):
@@ -132,6 +168,9 @@ def test_shared_layout(tmp_path, caplog):
         ds.sequence("Nope")
 
 
+SEQ_HEADER = "sequence,image_folder,n_frames,first_frame\n"
+
+
 @pytest.mark.parametrize(
     "file, content, message",
     [
@@ -143,6 +182,22 @@ def test_shared_layout(tmp_path, caplog):
          r"sequences.csv:3: sequence 'Car5' has no ground-truth file"),
         ("attributes.csv", "sequence,IV\nCar4,2\n", r"attributes.csv:2: attribute IV='2'"),
         ("attributes.csv", "sequence,IV\nCar4,1,1\n", r"attributes.csv:2: wrong number of fields"),
+        ("sequences.csv", SEQ_HEADER + "Car4,Car4,3,1\nBoard,Board,2,1\nCar4,Car4,3,1\n",
+         r"sequences.csv:4: duplicate row for sequence 'Car4' \(first at line 2\)"),
+        ("sequences.csv", SEQ_HEADER + "\nCar4,Car4,3,1\nCar4,Car4,3,1\n",
+         r"sequences.csv:4: duplicate row"),  # the line counts the skipped blank line
+        ("sequences.csv", SEQ_HEADER + "Car4,Car4,1_0,1\n", r"sequences.csv:2: n_frames='1_0'"),
+        ("sequences.csv", SEQ_HEADER + "Car4,Car4,\u0663,1\n", r"sequences.csv:2: n_frames="),
+        ("sequences.csv", SEQ_HEADER + "Car4,Car4, 3,1\n", r"sequences.csv:2: n_frames=' 3'"),
+        ("sequences.csv", SEQ_HEADER + "Car4,Car4,3" + "0" * 30 + ",1\n",
+         r"sequences.csv:2: n_frames='30+.* is too long for an integer"),
+        ("sequences.csv", "sequence,n_frames,n_frames,first_frame\nCar4,3,4,1\n", r"sequences.csv:1: header .* repeats"),
+        ("sequences.csv", SEQ_HEADER + "Car4,Car4,3,1\nBo\0ard,Board,2,1\n",
+         r"sequences.csv:3: sequence 'Bo\\x00ard' has no ground-truth file"),
+        ("sequences.csv", SEQ_HEADER + "Car4,Car4,3,1\nBoard," + "B" * 200_000 + ",2,1\n",
+         r"sequences.csv:3: malformed CSV \(field larger than field limit"),
+        ("attributes.csv", "sequence,IV\nCar4,1\nCar4,0\n", r"attributes.csv:3: a second row for sequence 'Car4'"),
+        ("attributes.csv", "sequence,IV\nCar5,1\n", r"attributes.csv:2: no ground-truth file for sequence 'Car5'"),
     ],
 )
 def test_shared_layout_bad_tables(tmp_path, file, content, message):
@@ -150,6 +205,48 @@ def test_shared_layout_bad_tables(tmp_path, file, content, message):
     write(root / file, content)
     with pytest.raises(ValueError, match=message):
         OTBDataset(root).sequence("Car4")
+
+
+@pytest.mark.parametrize("path", ["sequences.csv", "attributes.csv", "groundtruth/Extra.txt",
+                                  "trackers/T1/Car4.txt"])
+def test_directory_where_a_file_is_expected_is_named(tmp_path, path):
+    root = make_shared(tmp_path)
+    target = root / path
+    if target.exists():
+        target.unlink()
+    target.mkdir(parents=True)
+    with pytest.raises(ValueError, match=rf"{target}: is (a directory|not a regular file)"):
+        OTBDataset(root).tracker_boxes("T1", "Car4")
+
+
+def test_pipe_large_file_and_missing_file_are_named_errors(tmp_path):
+    fifo = tmp_path / "fifo.txt"
+    os.mkfifo(fifo)  # opening it for reading would block until a writer comes: it must not be opened
+    with pytest.raises(ValueError, match=rf"{fifo}: not a regular file"):
+        read_boxes(fifo)
+    big = tmp_path / "big.txt"
+    with open(big, "wb") as f:
+        f.truncate(MAX_FILE_BYTES + 1)  # sparse: no disk used
+    with pytest.raises(ValueError, match=rf"{big}: file is larger than {MAX_FILE_BYTES} bytes"):
+        read_boxes(big)
+    with pytest.raises(ValueError, match=rf"{tmp_path / 'none.txt'}: cannot read the file"):
+        read_boxes(tmp_path / "none.txt")
+
+
+def test_trackers_root_and_duplicate_tracker_files(tmp_path):
+    root = make_shared(tmp_path)
+    write(root / "trackers" / "T1" / "car4.txt", "70,51,107,87\n70,51,107,87\n70,51,107,87\n")
+    with pytest.raises(ValueError, match=r"T1/car4.txt: same sequence as Car4.txt"):
+        OTBDataset(root).tracker_sequences("T1")
+    with pytest.raises(ValueError, match="is not a folder"):
+        OTBDataset(root, trackers_root=root / "sequences.csv")
+    moved = make_shared(tmp_path / "b")
+    for p in sorted((moved / "trackers").rglob("*"), reverse=True):
+        p.unlink() if p.is_file() else p.rmdir()
+    (moved / "trackers").rmdir()
+    write(moved / "trackers", "not a folder")
+    with pytest.raises(ValueError, match="trackers'? is not a folder"):
+        OTBDataset(moved)
 
 
 def test_folders_layout_two_targets_and_toolkit_frame_ranges(tmp_path):
@@ -200,6 +297,16 @@ def test_pysot_json_layout(tmp_path):
         ('{"Car4": {"gt_rect": [[1,2,3,4]]}}', r"needs keys"),
         ('{"Car4": {"gt_rect": [[1,2,3,4]], "img_names": ["img/first.jpg"]}}', r"no frame number"),
         ('[]', r"OTB100.json:1: expected a non-empty object"),
+        ('{"Car4": {"gt_rect": [[1,2,3,4]], "img_names": ["1.jpg"]},\n "Car4": {"gt_rect": [[1,2,3,4]], '
+         '"img_names": ["1.jpg"]}}', r"OTB100.json: invalid JSON \(duplicate key 'Car4'"),
+        ('{"Car4": {"gt_rect": [[1,2,3,' + "4" * 5000 + ']], "img_names": ["1.jpg"]}}', r"longer than 64 characters"),
+        ("[" * 100_000, r"OTB100.json: invalid JSON \(.*recursion"),
+        ('{"Car4": {"gt_rect": [[1,2,3,4]], "img_names": ["1.jpg"], "attr": "IV"}}', r"attr='IV'; allowed a list"),
+        ('{"Car4": {"gt_rect": [[1,2,3,4]], "img_names": [1]}}', r"lists of boxes and of strings"),
+        ('{"Car4": {"gt_rect": [[1,2,3,4]], "img_names": ["img/0000.jpg"]}}', r"no frame number >= 1"),
+        ('{"Car4": {"gt_rect": [[1,2,3,4]], "img_names": ["img/\u0661.jpg"]}}', r"no frame number >= 1"),
+        ('{"Car4": {"gt_rect": [[1,2,3,4]], "img_names": ["' + "1" * 40 + '.jpg"]}}', r"too long for an integer"),
+        ('{"Car4": {"gt_rect": [[1,2,3,4], [1,2,1e999,4]], "img_names": ["1.jpg", "2.jpg"]}}', r"gt_rect\[1\]: non-finite"),
     ],
 )
 def test_pysot_json_bad_input(tmp_path, content, message):

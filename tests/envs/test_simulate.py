@@ -6,7 +6,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from envs.simulate import PRESETS, Scenario, ScenarioRanges, simulate, simulate_each
+from envs.simulate import PRESETS, Scenario, ScenarioRanges, reflect, simulate, simulate_each
+
+
+def _bounce(x: float, low: float, high: float) -> tuple[float, float]:
+    """Reflect ``x`` at the walls one bounce at a time: the folded value and the sign of its velocity."""
+    sign = 1.0
+    while not low <= x <= high:
+        x, sign = (2 * high - x if x > high else 2 * low - x), -sign
+    return x, sign
 
 
 def reference_loop(s: Scenario, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -32,7 +40,11 @@ def reference_loop(s: Scenario, seed: int) -> tuple[np.ndarray, np.ndarray, np.n
         V.append(v.copy())
     P, V = np.array(P), np.array(V)
     sxi = np.full(M, s.sigma_xi)
-    if M == 4:
+    if M == 4:  # log sizes reflected at the size bounds, one frame and coordinate at a time
+        for n in range(T):
+            for c in (2, 3):
+                P[n, c], sign = _bounce(P[n, c], math.log(s.size_bounds[0] / x0[c]), math.log(s.size_bounds[1] / x0[c]))
+                V[n, c] *= sign
         P[:, 2:] = x0[2:4] * np.exp(P[:, 2:])
         V[:, 2:] = P[:, 2:] * V[:, 2:]
         sxi[2:] *= s.size_noise_ratio
@@ -51,6 +63,8 @@ def reference_loop(s: Scenario, seed: int) -> tuple[np.ndarray, np.ndarray, np.n
         Scenario(psi=0.0, sigma_w=5.0, sigma_xi=1.0, n_frames=40, ndim=2, delta=0.02, x0=(5.0, 6.0, 1.0, -2.0)),
         Scenario(psi=0.9, sigma_w=20.0, sigma_xi=3.0, n_frames=50, ndim=4, sigma_w_log_size=0.5,
                  x0=(100.0, 80.0, 40.0, 30.0, 5.0, -3.0, 2.0, -1.0)),
+        Scenario(psi=0.5, sigma_w=20.0, sigma_xi=3.0, n_frames=400, ndim=4, sigma_w_log_size=2.0,  # many bounces
+                 size_bounds=(25.0, 50.0), x0=(100.0, 80.0, 40.0, 30.0, 5.0, -3.0, 20.0, -10.0)),
         replace(PRESETS["seed004_delta10"], n_frames=30),
     ],
 )
@@ -137,6 +151,10 @@ def test_n_tracks_tracks_are_independent_and_validated():
         ({"x0": (1.0, 2.0)}, "x0"),
         ({"x0": (1.0, 2.0, 0.0, 5.0, 0.0, 0.0, 0.0, 0.0)}, "x0"),
         ({"size_noise_ratio": 0.0}, "size_noise_ratio"),
+        ({"size_bounds": (10.0, 10.0)}, "size_bounds"),
+        ({"size_bounds": (0.0, 10.0)}, "size_bounds"),
+        ({"size_bounds": (5.0, float("inf"))}, "size_bounds"),
+        ({"size_bounds": (100.0, 200.0)}, "x0"),  # the default 64×48 box lies outside
     ],
 )
 def test_scenario_rejects_bad_values(kwargs, field):
@@ -161,8 +179,61 @@ def test_scenario_ranges_sample_in_range_and_reproducible():
 @pytest.mark.parametrize(
     "kwargs, field",
     [({"psi": (0.0, 1.0)}, "psi"), ({"sigma_w": (0.0, 1.0)}, "sigma_w"), ({"tau": (0.1, 0.05)}, "tau"),
-     ({"n_frames": (1, 10)}, "n_frames"), ({"ndim": 5}, "ndim")],
+     ({"n_frames": (1, 10)}, "n_frames"), ({"ndim": 5}, "ndim"), ({"size": (2.0, 200.0)}, "size_bounds")],
 )
 def test_scenario_ranges_reject_bad_ranges(kwargs, field):
     with pytest.raises(ValueError, match=field):
         ScenarioRanges(**kwargs)
+
+
+def test_reflect_folds_into_the_interval_and_leaves_inside_values_alone():
+    x = np.array([[-7.3, -1.0, 0.0, 0.4, 1.0, 2.5, 9.9]])
+    rate = np.arange(7.0)[None] + 1.0
+    folded, signed = reflect(x, rate, -1.0, 1.0)
+    want = np.array([_bounce(v, -1.0, 1.0) for v in x[0]])
+    np.testing.assert_allclose(folded[0], want[:, 0], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(signed[0], rate[0] * want[:, 1])
+    inside = np.array([[-0.5, 0.25]])
+    same = reflect(inside, rate[:, :2], -1.0, 1.0)
+    assert same[0] is inside and same[1] is not None  # no copy, so untouched tracks stay bit for bit
+
+
+def test_size_bounds_change_only_tracks_that_reach_them():
+    s = replace(PRESETS["seed000_car4"], sigma_w_log_size=0.05)  # sizes 107 × 87 px drift a little
+    free = simulate(replace(s, size_bounds=(1e-6, 1e9)), np.random.default_rng(4))
+    bounded = simulate(s, np.random.default_rng(4))
+    assert 4.0 < free.truth[:, 2:].min() and free.truth[:, 2:].max() < 1000.0  # never reaches (4, 1000) px
+    for got, want in zip(bounded, free):
+        np.testing.assert_array_equal(got, want)
+    tight = simulate(replace(s, size_bounds=(80.0, 120.0)), np.random.default_rng(4))
+    assert not np.array_equal(tight.truth, free.truth)
+    assert tight.truth[:, 2:].min() >= 80.0 - 1e-9 and tight.truth[:, 2:].max() <= 120.0 + 1e-9
+    np.testing.assert_array_equal(tight.truth[:, :2], free.truth[:, :2])  # centres are not affected
+
+
+@pytest.mark.parametrize("n_frames", [10_000, 100_000])
+def test_long_tracks_keep_sizes_within_the_bounds(n_frames):
+    """Unbounded, a 10,000-frame track at τ = 0.1 s reached 1e13 px; reflected, every size stays within
+    (4, 1000) px and every value is finite, at the env's longest track too."""
+    s = Scenario(psi=0.9, sigma_w=100.0, sigma_xi=10.0, tau=0.1, n_frames=n_frames, ndim=4, x0=(320, 240, 200, 20, 0, 0, 0, 0))
+    tr = simulate(s, np.random.default_rng(0), n_tracks=2)
+    sizes = tr.truth[..., 2:]
+    assert np.isfinite(tr.y).all() and np.isfinite(tr.truth_state).all()
+    assert sizes.min() >= 4.0 * (1 - 1e-12) and sizes.max() <= 1000.0 * (1 + 1e-12)
+    assert sizes.max() > 500.0 and sizes.min() < 8.0  # long enough to bounce: the bounds are doing the work
+
+
+def test_default_env_tracks_never_reach_the_size_bounds():
+    """The default 500-frame env episodes (published results) are the free tracks, bit for bit: over the first
+    1,000 noise seeds and the 500 test seeds, widening the bounds to the widest allowed changes nothing."""
+    from envs.config import EnvConfig
+    from envs.sources import SimSource
+
+    seeds = list(range(1000)) + [10**9 + i for i in range(500)]
+    default = SimSource(EnvConfig()).draw_many(seeds)
+    free = SimSource(EnvConfig(box_size_bounds=(1.0, 1e5))).draw_many(seeds)
+    for a, b in zip(default, free):
+        np.testing.assert_array_equal(a.y, b.y)
+        np.testing.assert_array_equal(a.truth, b.truth)
+    sizes = np.stack([ep.truth[:, 2:] for ep in default])
+    assert 4.0 < sizes.min() and sizes.max() < 1000.0

@@ -122,7 +122,8 @@ def test_reward_is_log_rmse_ratio_and_info_keys() -> None:
     for key in ("rmse", "rule_rmse", "success_auc", "rule_success_auc", "n_frames", "params"):
         assert key in info
     assert set(info["params"]) == {"psi", "horizon"} and isinstance(info["params"]["horizon"], int)
-    assert {"psi", "sigma_w", "sigma_xi", "tau"} <= set(info["track"])
+    assert set(info["track"]) == {"sequence", "noise_seed", "tau"}
+    assert info["scenario"] == env.unwrapped.episode.scenario and set(info["scenario"]) == {"psi", "sigma_w", "sigma_xi"}
 
 
 @pytest.mark.parametrize("reward", ["iou_precision", "success_auc"])
@@ -140,16 +141,46 @@ def test_observation_uses_measurements_only() -> None:
     ep = u.episode
     from dataclasses import replace
 
-    (_, _, again), = u._prepare([replace(ep, truth=ep.truth + 1000.0, meta={**ep.meta, "psi": 0.0, "sigma_w": 1e3})])
+    (_, _, again), = u._prepare([replace(ep, truth=ep.truth + 1000.0, scenario={"psi": 0.0, "sigma_w": 1e3, "sigma_xi": 1.0})])
     assert np.array_equal(again, obs)
 
 
-@pytest.mark.parametrize("bad", [np.array([np.nan, 0.0]), np.array([0.0, np.inf]), np.array([2.0, 0.0])])
-def test_bad_actions_raise(bad: np.ndarray) -> None:
-    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+@pytest.mark.parametrize("bad", [np.array([np.nan, 0.0]), np.array([0.0, np.inf]), np.array([2.0, 0.0]),
+                                 np.array([-1.001, 0.0]), np.zeros((3, 2)), np.zeros((1, 2)), np.zeros((0, 2)),
+                                 np.zeros((2, 1)), np.zeros(3), np.float32(0.0), [[0.0, 0.1], [0.2]]])
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_bad_actions_raise_and_leave_the_episode_as_it_was(env_id: str, bad: np.ndarray) -> None:
+    """Each entry of a step's action must be finite and within [-1, 1]; the action must have shape (d,):
+    a batch (A, d) — before, FilterTune-v0 scored its row 0 — or an empty (0, d) is refused too."""
+    env = _make(env_id, "ufir_cmn", "sim")
     env.reset(seed=0)
     with pytest.raises(ValueError, match="action"):
-        env.step(bad.astype(np.float32))
+        env.step(bad)
+    good = np.array([0.3, -0.2], np.float32)
+    _, reward, *_ = env.step(good)  # the same episode, still at its first decision
+    env.reset(seed=0)
+    assert env.step(good)[1] == reward
+
+
+@pytest.mark.parametrize("bad, error", [(np.array(["a", "b"]), TypeError), (np.array([True, False]), TypeError),
+                                        (np.array([0.5 + 1j, 0.0]), TypeError), (np.array([0.1, 2.0]), ValueError)])
+def test_score_checks_its_batch(bad: np.ndarray, error: type) -> None:
+    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+    env.reset(seed=0)
+    with pytest.raises(error, match="action"):
+        env.unwrapped.score(bad[None])
+    with pytest.raises(ValueError, match="A >= 1"):
+        env.unwrapped.score(np.zeros((0, 2)))
+    assert env.unwrapped.score(np.zeros((3, 2)))["reward"].shape == (3,)
+
+
+def test_out_of_range_action_is_not_clipped_beyond_float32_round_off() -> None:
+    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+    env.reset(seed=0)
+    edge = env.unwrapped.score(np.array([[1.0, -1.0], [1.0 + 5e-7, -1.0 - 5e-7]]))  # tolerance: clipped to ±1
+    assert edge["reward"][0] == edge["reward"][1]
+    with pytest.raises(ValueError, match="out of range"):
+        env.unwrapped.score(np.array([[1.0 + 2e-6, 0.0]]))
 
 
 def test_bad_arguments_fail_loudly() -> None:
@@ -162,6 +193,33 @@ def test_bad_arguments_fail_loudly() -> None:
     with pytest.raises(ValueError, match="reset option"):
         env = gym.make("bboxtune/FilterTune-v0", **SHORT)
         env.reset(options={"noise": 1})
+    with pytest.raises(TypeError, match="track_length"):  # before: accepted by int(), then failed elsewhere
+        gym.make("bboxtune/FilterTune-v0", track_length="100")
+    with pytest.raises(TypeError, match="psi_range"):
+        gym.make("bboxtune/FilterTune-v0", psi_range=(0.0, 0.5, 0.9))
+    with pytest.raises(ValueError, match=r"track_length=100001.*100000"):
+        gym.make("bboxtune/FilterTune-v0", track_length=100_001)
+    with pytest.raises(TypeError, match="noise_seed"):
+        gym.make("bboxtune/FilterTune-v0", **SHORT).reset(options={"noise_seed": "abc"})
+
+
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_a_rejected_first_reset_leaves_the_env_usable(env_id: str) -> None:
+    """Before, through Gymnasium's passive checker, every later step failed with ``TypeError: cannot unpack
+    non-iterable NoneType`` once the first reset had raised."""
+    env = gym.make(env_id, **SHORT)
+    for bad, error in (({"noise_seed": -1}, ValueError), ({"noise_seed": 1.5}, TypeError), ({"sequence": 3}, TypeError),
+                       ({"noise_seed": True}, TypeError), ("noise_seed", TypeError), ({"seed": 1}, ValueError)):
+        with pytest.raises(error, match="noise_seed|sequence|options|'seed'"):
+            env.reset(options=bad)
+    with pytest.raises(TypeError, match="seed"):
+        env.reset(seed="abc")
+    with pytest.raises(RuntimeError, match="reset"):  # no episode yet
+        env.step(np.zeros(env.action_space.shape, np.float32))
+    fresh = gym.make(env_id, **SHORT)
+    action = np.full(env.action_space.shape, 0.2, np.float32)
+    np.testing.assert_array_equal(env.reset(seed=4)[0], fresh.reset(seed=4)[0])
+    assert env.step(action)[1] == fresh.step(action)[1]
 
 
 def test_step_after_episode_end_raises() -> None:
@@ -260,3 +318,53 @@ def test_fused_scores_on_threshold_boundaries() -> None:
     np.testing.assert_allclose(got["success_auc"], metrics.success_auc(p, g), rtol=1e-12)
     np.testing.assert_allclose(got["iou_precision"], metrics.iou_precision(p, g).mean(axis=-1), rtol=1e-12)
     assert got["success_auc"][0] == pytest.approx(20 / 21) and got["iou_precision"][0] == 1.0
+
+
+TRUTH_KEYS = {"psi", "sigma_w", "sigma_xi", "sigma_rel"}
+VIDEO = {"source": "video", "detector": "regions", "video_pool": 2, "video_size": (128, 96), "track_length": 60}
+
+
+def _numbers(value) -> list[float]:
+    """Every real number inside ``value`` (nested dicts, tuples, lists)."""
+    if isinstance(value, dict):
+        return [x for v in value.values() for x in _numbers(v)]
+    if isinstance(value, (list, tuple)):
+        return [x for v in value for x in _numbers(v)]
+    return [float(value)] if isinstance(value, (int, float, np.number)) and not isinstance(value, bool) else []
+
+
+def _derived(scenario: dict, tau: float) -> list[float]:
+    """The true values and what follows from them alone: their logs and, for sim, the true N_opt and its log."""
+    values = [float(v) for v in scenario.values()]
+    if "sigma_xi" in scenario:
+        values.append(float(filters.n_opt(scenario["sigma_xi"], scenario["sigma_w"], tau)))
+    return values + [float(np.log(v)) for v in values if v > 0]
+
+
+@pytest.mark.parametrize("source", ["sim", pytest.param("otb", marks=needs_otb),
+                                    pytest.param("otb_tracker", marks=needs_otb), "video"])
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_truth_only_after_the_decision(env_id: str, source: str) -> None:
+    """Reset's info and the observations never hold a true scenario value (ψ, σ_w, σ_ξ, the relative CMN
+    level) or anything derived from it; the step after the decision does — FilterTune-v0's one step,
+    FilterRetune-v0's last one only."""
+    kwargs = VIDEO if source == "video" else {"source": source, "otb_root": OTB_ROOT} if source != "sim" else dict(SHORT)
+    env = gym.make(env_id, backend="kf_cmn", window=20, **kwargs)
+    for noise_seed in range(3):
+        obs, info = env.reset(options={"noise_seed": noise_seed})
+        ep = env.unwrapped.episode
+        assert bool(ep.scenario) == (source in ("sim", "otb"))  # otb_tracker and video have no synthetic noise
+        secret = _derived(ep.scenario, ep.tau)
+        assert not TRUTH_KEYS & set(info["track"]) and set(info) == {"track"}
+        shown = [obs]
+        while True:
+            assert not any(np.isclose(x, v, rtol=1e-6, atol=0) for x in _numbers(info) for v in secret), info
+            obs, _, terminated, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
+            shown.append(obs)
+            if terminated:
+                break
+            assert "scenario" not in info
+        assert info["scenario"] == ep.scenario
+        values = np.concatenate(shown).astype(np.float64)
+        for v in secret:
+            assert not np.isclose(values, np.float32(v), rtol=1e-6, atol=0).any(), (v, values)

@@ -82,6 +82,21 @@ def test_tables_have_expected_rows_with_finite_numbers(quick_run):
     assert "n/a" not in md
 
 
+def test_a_part_alone_gives_the_numbers_of_the_full_run(modules, quick_run, tmp_path):
+    """reproduce_seed004.py = the seed 004 part of reproduce.py: same Table I rows for the same seed, its own
+    markdown file, and the files already in --out that it does not write are left alone."""
+    import reproduce_seed004
+
+    (tmp_path / "keep.txt").write_text("mine")
+    assert reproduce_seed004.main(["--out", str(tmp_path), "--quick", "--seed", "3"]) == 0
+    part = (tmp_path / "reproduction_seed004.md").read_text()
+    assert "python scripts/reproduce_seed004.py --out" in part and "seed 000 Fig. 2" not in part
+    for label in ("Kalman filter", "Kwon FIR (N = 24)"):
+        assert _table_rows(part, label) == _table_rows(quick_run[1], label)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt", "reproduction_seed004.md", "seed004_table1.png"]
+    assert (tmp_path / "keep.txt").read_text() == "mine"
+
+
 def test_cmn_filters_beat_white_noise_filters_at_high_psi(quick_run):
     """Substance: under exact statistics the CMN-aware KF beats the standard KF at ψ = 0.9 (seed 000 Fig. 2a)."""
     _, md = quick_run

@@ -8,9 +8,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
 from envs.video.synthetic import VideoScenario, render
+from envs.video.tuning import FixedTuner
 
+from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
 from .tiny_run import load_script, tiny_run, train  # noqa: F401  (fixtures)
 
 SUMMARY_KEYS = ("raw_success_auc", "filtered_success_auc", "n_frames", "n_missing")
@@ -61,14 +64,82 @@ def test_track_video_with_a_trained_run(tmp_path, tiny_run):
 
 def test_video_table_tiny(tmp_path):
     out = tmp_path / "table"
-    load_script("video_table").main(["--n-test", "2", "--n-train", "1", "--frames", "30", "--detectors", "regions",
+    load_script("video_table").main(["--n-test", "3", "--n-train", "1", "--frames", "30", "--detectors", "regions",
                                      "template", "--backends", "kf", "--grid", "3", "--out", str(out)])
     summary = json.loads((out / "summary.json").read_text())["detectors"]
     assert set(summary) == {"regions", "template"}
     assert {"rule", "tuned"} <= set(summary["regions"]["kf"])
-    assert "| regions |" in (out / "table.md").read_text()
-    assert len(rows(out / "results.csv")) == 2 * 2 * 3  # videos × detectors × methods
+    table = (out / "table.md").read_text()
+    assert table.count("| regions |") == 2  # the means table and the worst-video table
+    results = rows(out / "results.csv")
+    assert len(results) == 3 * 2 * 3  # videos × detectors × methods
+    for detector in ("regions", "template"):  # the worst video is the lowest AUC in results.csv
+        s = summary[detector]
+        for method, reported in (("raw", s["raw_worst"]), ("rule", s["kf"]["rule"]["worst"]),
+                                 ("tuned", s["kf"]["tuned"]["worst"])):
+            mine = [r for r in results if r["detector"] == detector and r["method"] == method]
+            low = min(mine, key=lambda r: float(r["success_auc"]))
+            assert reported["video"] == low["video"], (detector, method)
+            assert reported["success_auc"] == pytest.approx(float(low["success_auc"]), abs=1e-5)
+            assert f"{reported['success_auc']:.3f} ({low['video']})" in table
     assert (out / "tuned" / "template-kf.json").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["table"]  # no temporary folder left behind
+
+
+def test_video_table_refuses_a_used_out(tmp_path, capsys):
+    out = tmp_path / "table"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    with pytest.raises(SystemExit) as exc:
+        load_script("video_table").main(["--n-test", "2", "--frames", "30", "--detectors", "regions",
+                                         "--out", str(out)])
+    assert exc.value.code == 2 and "not empty" in capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+
+
+def test_publish_folder_is_all_or_nothing(tmp_path):
+    common = load_script("video_common")
+    out = tmp_path / "out"
+    out.mkdir()  # an empty folder is taken
+    common.publish_folder(out, {"a.txt": "1", "sub/b.txt": "2"})
+    assert (out / "sub" / "b.txt").read_text() == "2"
+    with pytest.raises(ValueError, match="not empty"):  # a second run racing for it gets an error, not a mix
+        common.publish_folder(out, {"a.txt": "changed", "c.txt": "3"})
+    assert (out / "a.txt").read_text() == "1" and not (out / "c.txt").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # its temporary folder is gone
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(ValueError, match="not a folder"):
+        common.publish_folder(tmp_path / "file", {"a.txt": "1"})
+
+
+COUNT = ("0", "-1", "abc", "1_0", "2.5")  # not integers >= 1 ("1_0" is 10 to int())
+TABLE_MISUSE = [
+    *[misuse("--n-test", v) for v in (*COUNT, "1", "1000001")],  # the bootstrap needs >= 2 videos
+    *[misuse("--n-train", v) for v in COUNT],
+    *[misuse("--frames", v) for v in ("7", "0", "abc", "100001")],  # the env takes 8 … 100 000 frames
+    *[misuse("--grid", v) for v in ("1", "abc", "101")],  # 101² grid points for ufir_cmn: over 10 000
+    misuse("--backends", "kf_cmn", "--grid", "22"),  # 22³ > 10 000
+    misuse("--seed", "-1"), misuse("--detectors", "surf"), misuse("--backends", "nope"),
+    misuse("--backends", "kf", "kf"), misuse("--detectors"), misuse("--n-tes", "3", mentions="--n-tes"),
+    misuse("--out", "{file}"), misuse("--out", "{under_file}"), misuse("--out", ""),
+    misuse("--out", "{dir}/..", mentions="not empty"),  # the temporary folder holding the placeholders
+    misuse("--cache", "{file}"), misuse("--cache", "{under_file}"),
+    misuse("--tuned", "{missing}"), misuse("--tuned", "{dir}"), misuse("--tuned", "{file}"),
+    misuse("--tuned", "{bad_json}", mentions="{bad_json}:2"),
+    misuse("--trust-pickle", mentions="--tuned"),
+]
+
+
+@pytest.mark.parametrize("case", TABLE_MISUSE, ids=str)
+def test_video_table_misuse(case, misuse_paths, capsys):
+    check_misuse(load_script("video_table").main, case, misuse_paths, capsys)
+
+
+def test_video_table_tuned_backend_conflict(misuse_paths, capsys):
+    tuned = misuse_paths.root / "tuned.json"
+    FixedTuner("kf", np.zeros(2)).save(tuned)  # a grid-searched kf action
+    check_misuse(load_script("video_table").main, misuse("--tuned", str(tuned), "--backends", "ufir_cmn"),
+                 misuse_paths, capsys)
 
 
 def test_video_camera_tiny(tmp_path):

@@ -1,0 +1,226 @@
+"""Command-line helpers of ``scripts/``: a parser whose errors are one line, and argparse ``type=`` checks.
+
+Every script validates its whole command line before it does any work or writes anything:
+
+* :class:`ArgumentParser` — ``error()`` prints exactly one line, ``<prog>: error: <message> (see --help)``,
+  and exits 2 (argparse's default prints the usage block first); flags are never abbreviated
+  (``allow_abbrev=False``); :class:`HelpFormatter` shows the module docstring as written and appends real
+  defaults.
+* ``type=`` functions (argparse puts ``argument --flag:`` before their message): :func:`int_range`
+  (:data:`positive_int`, :data:`nonnegative_int`), :func:`float_range` (:data:`positive_float`) — numbers in
+  the grammar of :mod:`envs.number_grammar` (ASCII decimals: no ``1_0``, no non-ASCII digits, no
+  ``nan``/``inf``); :func:`existing_file`,
+  :func:`existing_dir`, :func:`out_dir` (a folder that exists and is writable, or can be created; nothing
+  is created here), :func:`json_file`, :func:`yaml_file` (parsed; errors name ``file:line:column``),
+  :func:`box_xywh` (``x,y,w,h`` with w, h > 0).
+* :func:`read_json`, :func:`read_yaml` — the same readers for files a script finds itself (ValueError
+  naming ``file:line:column``); :func:`argument_errors` turns the ValueError / OSError of a semantic check
+  (constructing a config, opening a dataset) into a one-line error naming the flag.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NoReturn
+
+import yaml
+
+from envs import textfile
+from envs.number_grammar import parse_float, parse_int, shorten
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser with one-line errors (``<prog>: error: <message> (see --help)``, exit status 2) and,
+    by default, no abbreviated flags (``--ou`` is not ``--out``)."""
+
+    def __init__(self, *args: Any, allow_abbrev: bool = False, **kwargs: Any) -> None:
+        super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)
+
+    def error(self, message: str) -> NoReturn:
+        line = " ".join(str(message).split())  # a message with newlines still gives one line
+        self.exit(2, f"{self.prog}: error: {line} (see --help)\n")
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Shows the description as written and appends real defaults (not None/False/empty) to the help."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        default = action.default
+        shown = not (default is None or default is False or default == [] or default == argparse.SUPPRESS)
+        if action.help and shown and "%(default)" not in action.help:
+            return action.help + " (default: %(default)s)"
+        return action.help or ""
+
+
+@contextmanager
+def argument_errors(parser: argparse.ArgumentParser, flag: str) -> Iterator[None]:
+    """Inside the block, a ValueError or OSError becomes ``parser.error("<flag>: <message>")`` (exit 2)."""
+    try:
+        yield
+    except (ValueError, OSError) as exc:
+        parser.error(f"{flag}: {exc}")
+
+
+def int_range(low: int, high: int | None = None) -> Callable[[str], int]:
+    """``type=`` for an integer in [low, high] (high None: no upper bound), ASCII digits with an optional sign."""
+    allowed = f"integers >= {low}" if high is None else f"integers {low}..{high}"
+
+    def parse(text: str) -> int:
+        try:
+            value = parse_int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"invalid value {shorten(text)}; allowed: {allowed}")
+        return value
+
+    return parse
+
+
+def float_range(low: float | None = None, high: float | None = None, *,
+                low_open: bool = False) -> Callable[[str], float]:
+    """``type=`` for a finite decimal number (``1.5``, ``-2e3``) with low <= x (low < x if ``low_open``) <= high."""
+    bounds = [f"{'>' if low_open else '>='} {low:g}"] if low is not None else []
+    bounds += [f"<= {high:g}"] if high is not None else []
+    allowed = " ".join(["finite numbers", " and ".join(bounds)]).strip()
+
+    def parse(text: str) -> float:
+        value = _finite(text)
+        ok = value is not None and (low is None or (value > low if low_open else value >= low))
+        if not ok or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"invalid value {shorten(text)}; allowed: {allowed}")
+        return value
+
+    return parse
+
+
+def _finite(text: str) -> float | None:
+    """The finite number ``text`` writes (:func:`envs.number_grammar.parse_float`), else None."""
+    try:
+        return parse_float(text)
+    except ValueError:
+        return None
+
+
+positive_int = int_range(1)
+nonnegative_int = int_range(0)
+positive_float = float_range(0.0, low_open=True)
+
+
+def existing_file(text: str) -> Path:
+    """``type=`` for a readable regular file."""
+    path = Path(text)
+    if not text or not path.exists():
+        raise argparse.ArgumentTypeError(f"{text!r} does not exist")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a folder; expected a file")
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text} is not a regular file")
+    if not os.access(path, os.R_OK):
+        raise argparse.ArgumentTypeError(f"{text} is not readable")
+    return path
+
+
+def existing_dir(text: str) -> Path:
+    """``type=`` for a folder that exists and can be listed."""
+    path = Path(text)
+    if not text or not path.exists():
+        raise argparse.ArgumentTypeError(f"{text!r} does not exist")
+    if not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is not a folder")
+    if not os.access(path, os.R_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text} is not readable")
+    return path
+
+
+def out_dir(text: str) -> Path:
+    """``type=`` for an output folder: an existing writable folder, or a path whose nearest existing ancestor is
+    a writable folder (so the script can create it). Creates nothing; what the script does with files already in
+    an existing folder is the script's to document."""
+    if not text:
+        raise argparse.ArgumentTypeError("empty path")
+    path = Path(text)
+    existing = next(p for p in (path, *path.parents) if os.path.lexists(p))  # "." / "/" always exist
+    if not existing.is_dir():
+        what = "exists and is not a folder" if existing == path else f"cannot be created: {existing} is not a folder"
+        raise argparse.ArgumentTypeError(f"{text} {what}")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        what = "is not writable" if existing == path else f"cannot be created: {existing} is not writable"
+        raise argparse.ArgumentTypeError(f"{text} {what}")
+    return path
+
+
+def _read_text(path: Path) -> str:
+    """The UTF-8 text of the regular file ``path`` (bounded, :mod:`envs.textfile`); ValueError naming it."""
+    return textfile.read_text(path)
+
+
+def _no_constant(name: str) -> NoReturn:
+    raise ValueError(f"non-standard JSON constant {name}")
+
+
+def read_json(path: Path) -> Any:
+    """Parse a JSON file (strict: ``NaN``/``Infinity`` are refused); ValueError ``file:line:column: why``."""
+    text = _read_text(Path(path))
+    try:
+        return json.loads(text, parse_constant=_no_constant)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
+    except ValueError as exc:  # a refused constant
+        raise ValueError(f"{path}: invalid JSON: {exc}") from None
+    except RecursionError:
+        raise ValueError(f"{path}: invalid JSON: nested too deeply") from None
+
+
+def read_yaml(path: Path) -> Any:
+    """Parse a YAML file with ``yaml.safe_load``; ValueError ``file:line:column: why``."""
+    text = _read_text(Path(path))
+    try:
+        return yaml.safe_load(text)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+        raise ValueError(f"{where}: invalid YAML: {exc.problem or exc.context}") from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: invalid YAML: {' '.join(str(exc).split())}") from None
+    except RecursionError:
+        raise ValueError(f"{path}: invalid YAML: nested too deeply") from None
+
+
+@dataclass(frozen=True)
+class Document:
+    """A parsed JSON / YAML file and where it came from (for later messages about its content)."""
+
+    path: Path
+    data: Any
+
+
+def _document(reader: Callable[[Path], Any]) -> Callable[[str], Document]:
+    def parse(text: str) -> Document:
+        path = existing_file(text)
+        try:
+            return Document(path, reader(path))
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    return parse
+
+
+json_file = _document(read_json)
+yaml_file = _document(read_yaml)
+
+
+def box_xywh(text: str) -> tuple[float, float, float, float]:
+    """``type=`` for a box ``x,y,w,h`` in px: four finite numbers, w > 0 and h > 0."""
+    parts = [p.strip() for p in text.split(",", 4)] if len(text) <= 400 else []
+    values = [_finite(p) for p in parts] if len(parts) == 4 else []
+    if len(values) != 4 or None in values or values[2] <= 0 or values[3] <= 0:
+        raise argparse.ArgumentTypeError(f"invalid box {shorten(text)}; allowed: x,y,w,h (px), finite, w > 0, h > 0")
+    x, y, w, h = values
+    return x, y, w, h

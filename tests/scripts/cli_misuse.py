@@ -1,0 +1,129 @@
+"""Misuse cases of the command-line scripts, run in-process through ``main(argv)``.
+
+A case passes when the script stops before doing any work with exit status 2 (``SystemExit(2)`` or a return
+value of 2), exactly one line on stderr that contains the case's ``mentions`` (the offending flag or file), no
+traceback, and no file created, changed or removed under the test's temporary folder. The run happens in a
+fresh working folder inside it, so default output folders (``runs/...``) count too, and with ``$OTB_ROOT``
+unset unless the case sets it.
+
+Placeholders in a case's arguments, ``mentions`` and ``env`` are replaced by paths of :class:`MisusePaths`:
+``{file}`` a regular file, ``{dir}`` an existing empty folder, ``{missing}`` a path that does not exist,
+``{under_file}`` a path below a regular file (an output folder that cannot be created), ``{bad_json}`` and
+``{bad_yaml}`` malformed files, ``{out}`` a fresh output folder (not created).
+
+Adding cases for a script (in its own test module, or in ``CASES`` of ``test_cli_misuse.py``)::
+
+    from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
+
+    CASES = [misuse("--episodes", "0"), misuse("--model", "{missing}"), misuse(mentions="--model")]
+
+    @pytest.mark.parametrize("case", CASES, ids=str)
+    def test_misuse(case, misuse_paths, capsys):
+        check_misuse(load_script("compare").main, case, misuse_paths, capsys)
+
+``misuse(*args)`` expects the last ``--flag`` of ``args`` in the error line; pass ``mentions=`` otherwise.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@dataclass(frozen=True)
+class Misuse:
+    """One misuse of a script: its arguments, the text its error line must contain, extra environment variables."""
+
+    args: tuple[str, ...]
+    mentions: str
+    env: tuple[tuple[str, str], ...] = ()
+
+    def __str__(self) -> str:
+        env = " ".join(f"{k}={v}" for k, v in self.env)
+        return " ".join([env, *self.args]).strip() or "(no arguments)"
+
+
+def misuse(*args: str, mentions: str | None = None, env: dict[str, str] | None = None) -> Misuse:
+    """A :class:`Misuse`; ``mentions`` defaults to the last ``--flag`` in ``args``."""
+    if mentions is None:
+        flags = [a for a in args if a.startswith("--")]
+        if not flags:
+            raise ValueError(f"misuse{args!r}: no --flag to expect in the error; pass mentions=")
+        mentions = flags[-1]
+    return Misuse(tuple(args), mentions, tuple(sorted((env or {}).items())))
+
+
+@dataclass(frozen=True)
+class MisusePaths:
+    """The temporary folder of one case and the paths its placeholders stand for."""
+
+    root: Path  # everything a misuse run could touch lives below it
+    work: Path  # the working folder of the run
+    names: dict[str, str]  # placeholder → path
+
+    def format(self, text: str) -> str:
+        return text.format(**self.names)
+
+
+@pytest.fixture
+def misuse_paths(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> MisusePaths:
+    """Fresh placeholder paths under ``tmp_path``; the working folder is ``tmp_path/work``; ``$OTB_ROOT`` unset."""
+    file, folder, work = tmp_path / "file.txt", tmp_path / "folder", tmp_path / "work"
+    file.write_text("not what any script expects\n")
+    folder.mkdir()
+    work.mkdir()
+    (tmp_path / "bad.json").write_text('{"a": 1,\n "b": }\n')
+    (tmp_path / "bad.yml").write_text("a: 1\nb: [1, 2\n")
+    monkeypatch.chdir(work)
+    monkeypatch.delenv("OTB_ROOT", raising=False)
+    names = {"file": file, "dir": folder, "missing": tmp_path / "missing", "under_file": file / "out",
+             "bad_json": tmp_path / "bad.json", "bad_yaml": tmp_path / "bad.yml", "out": tmp_path / "out"}
+    return MisusePaths(tmp_path, work, {k: str(v) for k, v in names.items()})
+
+
+def snapshot(root: Path) -> dict[str, tuple[bool, int, int]]:
+    """Every path below ``root`` → (is a folder, size, modification time in ns)."""
+    out = {}
+    for folder, dirs, files in os.walk(root):
+        for name in dirs + files:
+            st = os.lstat(os.path.join(folder, name))
+            out[os.path.relpath(os.path.join(folder, name), root)] = (name in dirs, st.st_size, st.st_mtime_ns)
+    return out
+
+
+def check_misuse(main: Callable[[list[str]], object], case: Misuse, paths: MisusePaths,
+                 capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch | None = None) -> str:
+    """Run ``main`` on ``case`` and assert the misuse contract (module docstring); returns the error line."""
+    argv = [paths.format(a) for a in case.args]
+    if case.env:
+        assert monkeypatch is not None, f"{case}: sets environment variables; pass monkeypatch"
+        for key, value in case.env:
+            monkeypatch.setenv(key, paths.format(value))
+    before = snapshot(paths.root)
+    capsys.readouterr()  # drop earlier output
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2, f"{case}: exit status {code!r}, expected 2; stderr: {err!r}"
+    assert "Traceback" not in err, f"{case}: traceback on stderr: {err}"
+    lines = err.splitlines()
+    assert len(lines) == 1, f"{case}: expected one line on stderr, got {len(lines)}: {err!r}"
+    assert paths.format(case.mentions) in lines[0], f"{case}: {case.mentions!r} not named in {lines[0]!r}"
+    assert snapshot(paths.root) == before, f"{case}: files were written, changed or removed"
+    return lines[0]
+
+
+def run_script(name: str, *args: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    """``python scripts/<name>.py ARGS`` in ``cwd`` (the timeout only catches a hang)."""
+    return subprocess.run([sys.executable, str(REPO / "scripts" / f"{name}.py"), *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=timeout)
