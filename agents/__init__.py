@@ -9,4 +9,11 @@
   ``scripts/train.py``; :mod:`agents.safe_load`, :mod:`agents.run_files` — their files read without unpickling;
   :mod:`agents.evaluate`, :mod:`agents.stats`, :mod:`agents.report`, :mod:`agents.plots` — ``scripts/compare.py``.
 * :mod:`agents.cli` — the scripts' argument checks (one-line errors, exit status 2).
+* :func:`tune` / :func:`smooth` (from :mod:`agents.tune`) — a trained tuner's parameters for a track of boxes,
+  and the track smoothed with them; :mod:`agents.pretrained` — the tuners shipped with the package, by name.
+  (``agents.tune`` is the function; the module is ``sys.modules["agents.tune"]`` / ``from agents.tune import …``.)
 """
+
+from agents.tune import smooth, tune
+
+__all__ = ["smooth", "tune"]

@@ -16,6 +16,8 @@ Every script validates its whole command line before it does any work or writes 
 * :func:`read_json`, :func:`read_yaml` — the same readers for files a script finds itself (ValueError
   naming ``file:line:column``); :func:`argument_errors` turns the ValueError / OSError of a semantic check
   (constructing a config, opening a dataset) into a one-line error naming the flag.
+* :func:`key_values` — ``KEY=VALUE`` / ``KEY:VALUE`` items (``--env-kwargs`` of train.py and compare.py,
+  ``--hyperparams``) into a dict of YAML values.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import yaml
 
 from envs import textfile
 from envs.number_grammar import parse_float, parse_int, shorten
+from envs.otb import TRACKER_SPLIT
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -191,6 +194,48 @@ def read_yaml(path: Path) -> Any:
         raise ValueError(f"{path}: invalid YAML: {' '.join(str(exc).split())}") from None
     except RecursionError:
         raise ValueError(f"{path}: invalid YAML: nested too deeply") from None
+
+
+def key_values(flag: str, items: list[str], separators: str = "=:") -> dict[str, Any]:
+    """``KEY<sep>VALUE`` items as ``{KEY: yaml.safe_load(VALUE)}``: each item is split at its first character
+    from ``separators`` (so ``otb_root=/a:b`` is ``otb_root`` → ``"/a:b"``, ``tune:[psi, horizon]`` a list);
+    ValueError naming ``flag`` and the item for a missing key or separator, a key given twice, or a value that
+    is not valid YAML. Whether the keys and values are allowed is the caller's check.
+
+    >>> key_values("--env-kwargs", ["track_length=100", "psi_range:[0, 0.5]"])
+    {'track_length': 100, 'psi_range': [0, 0.5]}
+    """
+    shapes = " or ".join(f"KEY{sep}VALUE" for sep in separators)
+    out: dict[str, Any] = {}
+    for item in items:
+        cut = min((i for i in (item.find(sep) for sep in separators) if i >= 0), default=-1)
+        key, value = (item[:cut], item[cut + 1:]) if cut >= 0 else (item, "")
+        if cut < 0 or not key:
+            raise ValueError(f"{flag} {shorten(item)}: expected {shapes}")
+        if key in out:
+            raise ValueError(f"{flag}: {key} given twice")
+        try:
+            out[key] = yaml.safe_load(value)
+        except yaml.YAMLError as err:
+            why = getattr(err, "problem", None) or " ".join(str(err).split())
+            raise ValueError(f"{flag} {shorten(item)}: the value is not valid YAML ({why})") from None
+    return out
+
+
+def tracker_set(text: str) -> tuple[str, ...]:
+    """``--trackers``: ``train`` or ``test`` (the tracker split ``envs.otb.TRACKER_SPLIT``) or comma-separated
+    tracker names (checked against the OTB data when the env is built).
+
+    >>> tracker_set("SiamFC,STRUCK"), tracker_set("test")
+    (('SiamFC', 'STRUCK'), ('SiamRPN++', 'CFNet', 'STRUCK', 'MDNet'))
+    """
+    if text in TRACKER_SPLIT:
+        return TRACKER_SPLIT[text]
+    names = tuple(name.strip() for name in text.split(","))
+    if not all(names) or len(set(names)) < len(names):
+        raise argparse.ArgumentTypeError(f"{shorten(text)}: expected 'train', 'test' or distinct comma-separated "
+                                         "tracker names")
+    return names
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,16 @@
 """Fit the baselines on train episodes and score every method on the same test episodes.
 
-Each test episode is reset once (``options={"noise_seed": …}``, test split of :mod:`agents.splits`); every
-policy chooses its action for it, all actions are scored in one batched ``env.unwrapped.score`` call, and the
-Sage–Husa adaptive KF (its own filter, :mod:`agents.adaptive`) is scored on the same measurements with
-``envs.scoring.score_estimates``. So all methods see identical data (common random numbers).
+Each test episode (an :class:`agents.splits.EpisodeSpec`, from :func:`evaluation_episodes`) is reset once with its
+pinned options; every policy chooses its action for it and each action is scored by ``env.unwrapped.score``
+(one call per action, so a method's scores never depend on which other methods are compared). Two methods are
+estimates of their own, scored on the same measurements with ``envs.scoring.score_estimates``: ``raw``, the
+measurements themselves (no filter), and the Sage–Husa adaptive KF (:mod:`agents.adaptive`). So all methods see
+identical data (common random numbers).
+
+``raw`` and missing measurements: a frame without a measurement (a NaN row of ``y``, e.g. a tracker that lost
+the target) is a missing estimate, scored as the scorer scores any missing estimate — a failure for success
+AUC and precision (IoU 0, infinite centre error) and left out of the RMSE (which then covers the frames that
+have a measurement; the filters predict through such gaps and are scored there).
 """
 
 from __future__ import annotations
@@ -20,13 +27,16 @@ from agents.adaptive import SageHusaConfig, sage_husa_positions
 from agents.baselines import (AmortisedPolicy, EpisodePolicy, GlobalPolicy, GridSearch, OraclePolicy, Policy,
                               RuleEstimatedSigmaPolicy, RulePolicy, RuleTrueSigmaPolicy)
 from agents.episodes import EpisodeBank
-from agents.splits import train_seeds
+from agents.splits import EpisodeSpec, otb_episodes, split_seeds, train_seeds
 from envs import metrics
 from envs.boxes import cxcywh_to_xywh
 from envs.scoring import score_estimates
 
+RAW = "raw"
 ADAPTIVE = "adaptive"
 ADAPTIVE_TRUTH = "n"
+OTB_SOURCES = ("otb", "otb_tracker")  # sources whose test episodes are enumerated, not drawn
+TRUE_KEYS = ("psi", "sigma_w", "sigma_xi", "sigma_rel", "tau")  # the true scenario, for analysis (true_<key>)
 
 
 @dataclass(frozen=True)
@@ -52,13 +62,43 @@ def fit_baselines(env: gym.Env, oracle: OraclePolicy, settings: BaselineSettings
     return [glob, amortised]
 
 
-def standard_policies(source: str, search: GridSearch) -> list[Policy]:
-    """The training-free policies: rule, rule with estimated σ, rule with true σ (sim only), and the oracle
-    (grid ``search`` anchored at the actions of all of them, so that it is never worse than any)."""
+def standard_policies(source: str, search: GridSearch, reward: str = "rmse") -> list[Policy]:
+    """The training-free policies: rule, rule with estimated σ, rule with true σ (sim only), the oracle of the
+    env's ``reward`` (named ``oracle``) and the oracle of the other metric (``oracle_auc``, maximising success AUC,
+    when the reward is RMSE; else ``oracle_rmse``); both searches (``search``) are anchored at the rules' actions,
+    so that each is never worse than any rule on its objective."""
     rules: list[EpisodePolicy] = [RulePolicy(), RuleEstimatedSigmaPolicy()]
     if source == "sim":
         rules.append(RuleTrueSigmaPolicy())
-    return [*rules, OraclePolicy(search, anchors=rules)]
+    other = (OraclePolicy(search, anchors=rules, objective="success_auc", name="oracle_auc") if reward == "rmse"
+             else OraclePolicy(search, anchors=rules, objective="rmse", name="oracle_rmse"))
+    return [*rules, OraclePolicy(search, anchors=rules), other]
+
+
+def evaluation_episodes(env: gym.Env, split: str, *, episodes: int | None, seeds_per_sequence: int | None,
+                  seed: int = 0) -> list[EpisodeSpec]:
+    """The episodes an evaluation of ``env`` (built with ``split``) scores. OTB sources enumerate them
+    (:func:`agents.splits.otb_episodes` over ``env.unwrapped.source.sequences`` and ``.trackers``, each tracker on
+    the sequences it has output for, ``.sequences_of``;
+    ``seeds_per_sequence`` for "otb", ``episodes`` must be None); the others take ``episodes`` noise seeds of
+    :func:`agents.splits.split_seeds` (``seeds_per_sequence`` must be None). ValueError naming the argument."""
+    base = env.unwrapped
+    source = base.config.source
+    if source not in OTB_SOURCES:
+        if episodes is None or seeds_per_sequence is not None:
+            raise ValueError(f"source {source!r} draws its episodes: give their number, not seeds per sequence")
+        return [EpisodeSpec(int(s)) for s in split_seeds(split, episodes, seed)]
+    if episodes is not None:
+        raise ValueError(f"source {source!r} enumerates its episodes (every sequence of the split"
+                         f"{' × tracker' if source == 'otb_tracker' else ' × noise seeds'}): no episode count")
+    pool = base.source
+    if source == "otb":
+        return otb_episodes(pool.sequences, (), split, seeds_per_sequence=seeds_per_sequence or 1, seed=seed)
+    if seeds_per_sequence is not None:
+        raise ValueError("source 'otb_tracker' replays each tracker's output once per sequence: no seeds per sequence")
+    outputs = {t: set(pool.sequences_of(t)) for t in pool.trackers}
+    return otb_episodes(pool.sequences, pool.trackers, split, seed=seed,
+                        has_output=lambda tracker, sequence: sequence in outputs[tracker])
 
 
 @dataclass
@@ -72,52 +112,55 @@ class Evaluation:
     truth_at_test: dict[str, str]  # method -> "n" / "y (...)"
 
 
-def evaluate(env: gym.Env, policies: Sequence[Policy], seeds: Sequence[int], *,
+def evaluate(env: gym.Env, policies: Sequence[Policy], episodes: Sequence[EpisodeSpec], *,
              adaptive: SageHusaConfig | None = SageHusaConfig(), progress: bool = False) -> Evaluation:
-    """Score ``policies`` (and the adaptive KF unless ``adaptive`` is None) on the episodes ``seeds``."""
+    """Score ``raw``, ``policies`` and the adaptive KF (unless ``adaptive`` is None) on ``episodes``."""
     base = env.unwrapped
-    backend = base.config.backend
-    names = [p.name for p in policies] + ([ADAPTIVE] if adaptive is not None else [])
+    backend, source = base.config.backend, base.config.source
+    names = [RAW] + [p.name for p in policies] + ([ADAPTIVE] if adaptive is not None else [])
     if len(set(names)) != len(names) or "rule" not in names:
-        raise ValueError(f"method names {names} must be distinct and include 'rule'")
+        raise ValueError(f"method names {names} must be distinct and include 'rule' (and not {RAW!r})")
+    if not episodes:
+        raise ValueError("no episodes to evaluate")
     rows: list[dict[str, Any]] = []
     success = {n: np.zeros(len(metrics.SUCCESS_THRESHOLDS)) for n in names}
     precision = {n: np.zeros(len(metrics.PRECISION_THRESHOLDS)) for n in names}
     example: dict[str, Any] = {}
-    for i, seed in enumerate(tqdm(seeds, desc="test episodes", disable=not progress)):
-        obs, _ = env.reset(options={"noise_seed": int(seed)})
+    for i, spec in enumerate(tqdm(episodes, desc="test episodes", disable=not progress)):
+        obs, _ = env.reset(options=spec.options())
         ep = base.episode
         actions = np.stack([p.act(obs, env) for p in policies])
-        res = base.score(actions)
-        est = res["estimates"]
-        scores = {k: v for k, v in res.items() if k not in ("params", "estimates")}
-        params = {k: np.asarray(v, dtype=float) for k, v in res["params"].items()}
+        results = [base.score(a[None]) for a in actions]
+        estimates = [ep.y[None], *(r["estimates"] for r in results)]
+        params = {k: np.array([np.nan, *(float(r["params"][k][0]) for r in results)]) for k in results[0]["params"]}
         if adaptive is not None:
-            a_est = sage_husa_positions(ep.y[None], ep.tau, ep.nominal.sigma_w, ep.nominal.sigma_v, adaptive)
-            a_scores = score_estimates(a_est, ep.truth)
-            est = np.concatenate([est, a_est])
-            scores = {k: np.append(scores[k], a_scores[k][0]) for k in a_scores}
+            estimates.append(sage_husa_positions(ep.y[None], ep.tau, ep.nominal.sigma_w, ep.nominal.sigma_v, adaptive))
             params = {k: np.append(v, np.nan) for k, v in params.items()}
+        est = np.concatenate(estimates)
+        scores = score_estimates(est, ep.truth)
         rule_rmse = float(scores["rmse"][names.index("rule")])
+        with np.errstate(divide="ignore", invalid="ignore"):  # a NaN (raw: no measurement at all) or 0 RMSE
+            log_ratio = np.log(rule_rmse / scores["rmse"])
         pred, gt = cxcywh_to_xywh(est), cxcywh_to_xywh(ep.truth)
         s_curve, p_curve = metrics.success_curve(pred, gt), metrics.precision_curve(pred, gt)
         known = {**ep.meta, **ep.scenario}  # identifying metadata and the true scenario (for analysis)
-        meta = {k: known[k] for k in ("sequence", "psi", "sigma_w", "sigma_xi", "sigma_rel", "tau") if k in known}
+        meta = {k: known[k] for k in TRUE_KEYS if k in known}
+        where = {"sequence": ep.meta.get("sequence", ""), "tracker": ep.meta.get("tracker", "")}
         for j, name in enumerate(names):
-            success[name] += s_curve[j] / len(seeds)
-            precision[name] += p_curve[j] / len(seeds)
+            success[name] += s_curve[j] / len(episodes)
+            precision[name] += p_curve[j] / len(episodes)
             rows.append({
-                "method": name, "backend": backend, "episode": i, "noise_seed": int(seed),
-                "rmse": float(scores["rmse"][j]), "rule_rmse": rule_rmse,
-                "log_ratio": float(np.log(rule_rmse / scores["rmse"][j])),
+                "method": name, "episode": i, **where, "rmse": float(scores["rmse"][j]),
                 "success_auc": float(scores["success_auc"][j]), "precision20": float(scores["precision20"][j]),
+                "backend": backend, "source": ep.meta.get("source", source), "noise_seed": int(spec.noise_seed),
+                "rule_rmse": rule_rmse, "log_ratio": float(log_ratio[j]),
                 "iou_mean": float(scores["iou_mean"][j]), "iou_precision": float(scores["iou_precision"][j]),
                 **{f"param_{k}": float(v[j]) for k, v in params.items()},
                 **{f"true_{k}": v for k, v in meta.items()},
             })
         if i == 0:
             example = {"truth": ep.truth, "y": ep.y, "estimates": dict(zip(names, est)), "meta": meta}
-    truth = {p.name: p.truth_at_test for p in policies}
+    truth = {RAW: "n", **{p.name: p.truth_at_test for p in policies}}
     if adaptive is not None:
         truth[ADAPTIVE] = ADAPTIVE_TRUTH
     return Evaluation(rows=rows, success=success, precision=precision, example=example, truth_at_test=truth)

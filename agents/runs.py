@@ -192,11 +192,13 @@ class SB3Policy(ObsPolicy):
         return np.asarray(actions, dtype=np.float64).reshape(len(obs), -1)
 
     @classmethod
-    def load(cls, run_dir: Path, which: str = "final", *, trust_pickle: bool = False) -> SB3Policy:
+    def load(cls, run_dir: Path, which: str = "final", *, trust_pickle: bool = False,
+             venv: VecEnv | None = None) -> SB3Policy:
         """The ``"final"`` (``model.zip``) or ``"best"`` (``best_model.zip``, best on the val split) tuner of a run,
         loaded without unpickling (``trust_pickle``: accept an old run's ``vecnormalize.pkl``, see
         :func:`agents.run_files.load_normalizer`); :class:`RunError` naming the file that is missing, unreadable
-        or inconsistent with ``config.yml``."""
+        or inconsistent with ``config.yml``. ``venv``: an env with the spaces of the config's env, used in its place
+        (:mod:`agents.tune` passes one that needs no data set); default: the config's env itself."""
         if which not in ("final", "best"):
             raise ValueError(f"which={which!r}; allowed: 'final', 'best'")
         run_dir = Path(run_dir)
@@ -205,7 +207,7 @@ class SB3Policy(ObsPolicy):
         model_path = run_dir / f"{prefix}model.zip"
         if not model_path.exists():
             raise RunError(f"{model_path} not found (is the run finished? resume it with train.py --resume {run_dir})")
-        venv = env_spaces_venv(cfg, run_dir / CONFIG)
+        venv = venv if venv is not None else env_spaces_venv(cfg, run_dir / CONFIG)
         model = load_model(model_path, cfg, venv)
         normalizer = load_normalizer(run_dir, venv, prefix=prefix, trust_pickle=trust_pickle)
         try:

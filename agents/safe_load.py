@@ -15,6 +15,8 @@ config, so weights of another architecture fail to load (``exact_match``).
 
 Consistency: the ``data`` JSON's plain shape/dtype of both spaces must equal the env's, and a model saved by
 ``scripts/train.py`` carries :data:`RUN_ENV` (env id and kwargs of its run), which must equal the config's.
+:func:`check_env_match` checks a loaded model against another env it is to act in (``compare.py --env-kwargs``):
+equal spaces, and actions that set the same parameters of the same back end through the same mapping.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 
@@ -34,6 +37,7 @@ from agents.algos import algo_class
 from agents.hyperparams import constructor_kwargs, load_hyperparams
 from agents.run_files import RunError
 from envs import textfile
+from envs.config import EnvConfig
 
 MAX_MODEL_BYTES = 2**30  # a model.zip of this project is a few hundred kB
 RUN_ENV = "bboxtune_run_env"  # model attribute saved in data: {"env_id": ..., "env_kwargs": ...}
@@ -132,3 +136,38 @@ def load_model(path: Path, cfg: dict[str, Any], venv: VecEnv, **kwargs: Any) -> 
     if not isinstance(model.num_timesteps, int) or model.num_timesteps < 0:
         raise RunError(f"{path}: num_timesteps={model.num_timesteps!r}")
     return model
+
+
+def _space(space: gym.Space) -> str:
+    return f"{space.dtype}{list(space.shape)}"
+
+
+def check_env_match(path: Path, model: BaseAlgorithm, cfg: dict[str, Any], env: gym.Env) -> None:
+    """:class:`RunError` (one line naming the space and both shapes) unless ``model`` — of the run whose config is
+    ``cfg`` — can act in ``env``: the observation and action spaces have equal shapes and dtypes, and an action
+    means the same thing — the same back end, tuned parameters (``tune``) and action mapping (``horizon_max``,
+    ``sigma_decades``). Everything else (source, split, track length, scenario ranges, …) may differ: that is a
+    transfer evaluation."""
+    for key in ("observation_space", "action_space"):
+        mine, theirs = getattr(model, key), getattr(env, key)
+        if mine.shape != theirs.shape or mine.dtype != theirs.dtype:
+            raise RunError(f"{path}: {key} {_space(mine)} of the model differs from the evaluation env's "
+                           f"{_space(theirs)}: the model cannot act in this env")
+    try:
+        run = EnvConfig.from_kwargs(**cfg["env_kwargs"])
+    except (TypeError, ValueError) as err:
+        raise RunError(f"{path}: the run's env_kwargs are not a valid env configuration ({err})") from None
+    here = env.unwrapped.config
+    if _meaning(run) != _meaning(here):
+        raise RunError(f"{path}: action_space {_actions(run, model.action_space)} in its run, but "
+                       f"{_actions(here, env.action_space)} in the evaluation env: the actions would mean other parameters")
+
+
+def _meaning(cfg: EnvConfig) -> tuple[Any, ...]:
+    """What an action sets: back end, tuned parameters, action mapping."""
+    return cfg.backend, cfg.tune, cfg.horizon_max, cfg.sigma_decades
+
+
+def _actions(cfg: EnvConfig, space: gym.Space) -> str:
+    return (f"{_space(space)} sets {list(cfg.tune)} of back end {cfg.backend} (horizon_max {cfg.horizon_max}, "
+            f"sigma_decades {cfg.sigma_decades:g})")

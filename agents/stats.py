@@ -3,6 +3,12 @@
 All methods are scored on the same episodes (common random numbers), so comparisons are paired: a
 bootstrap resample draws episode indices once and applies them to every method.
 
+Episodes that share a source of variation (the OTB episodes of one sequence: its motion, its tracker's
+failures) are not independent, so :func:`cluster_bootstrap_indices` resamples *clusters* (e.g. sequences) with
+replacement and takes all episodes of every drawn cluster; with every episode its own cluster it draws exactly
+:func:`bootstrap_indices`. A resample set (:data:`Resamples`) is an (n_boot, m) index array when every resample
+has the same size m, else a list of n_boot index arrays; :func:`ci` takes either.
+
 >>> import numpy as np
 >>> round(iqm(np.arange(8.0)), 6)   # mean of the middle half: 2, 3, 4, 5
 3.5
@@ -12,12 +18,13 @@ bootstrap resample draws episode indices once and applies them to every method.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Hashable, Sequence
 
 import numpy as np
 from scipy.stats import trim_mean
 
 Stat = Callable[[np.ndarray], np.ndarray]  # (..., n) -> (...)
+Resamples = np.ndarray | list[np.ndarray]  # (n_boot, m) episode indices, or n_boot index arrays of varying size
 
 
 def iqm(x: np.ndarray, axis: int = -1) -> np.ndarray | float:
@@ -45,10 +52,39 @@ def bootstrap_indices(n: int, n_boot: int, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).integers(n, size=(n_boot, n))
 
 
-def ci(x: np.ndarray, stat: Stat, idx: np.ndarray, level: float = 0.95) -> tuple[float, float, float]:
+def cluster_bootstrap_indices(clusters: Sequence[Hashable], n_boot: int, seed: int) -> Resamples:
+    """Resamples of the episodes whose cluster labels are ``clusters`` (one per episode): each draws the
+    C distinct clusters C times with replacement (the same draws for every method: paired) and takes all
+    episodes of each drawn cluster, in episode order within a cluster. Clusters are numbered in order of
+    first appearance; the draws are ``default_rng(seed).integers(C, size=(n_boot, C))``, so labels that are
+    all distinct give :func:`bootstrap_indices` ``(n, n_boot, seed)`` exactly. An (n_boot, m) array when all
+    clusters have the same size, else a list of n_boot arrays.
+
+    >>> cluster_bootstrap_indices(["a", "a", "b", "b"], 3, seed=0).shape  # 2 clusters of 2 episodes
+    (3, 4)
+    """
+    labels = list(clusters)
+    if not labels or n_boot < 1:
+        raise ValueError(f"{len(labels)} episodes, n_boot={n_boot}; allowed: both >= 1")
+    members: dict[Hashable, list[int]] = {}
+    for i, label in enumerate(labels):
+        members.setdefault(label, []).append(i)
+    groups = [np.array(m, dtype=np.intp) for m in members.values()]
+    draws = bootstrap_indices(len(groups), n_boot, seed)
+    if len({len(g) for g in groups}) == 1:
+        return np.stack(groups)[draws].reshape(n_boot, -1)
+    return [np.concatenate([groups[c] for c in row]) for row in draws]
+
+
+def n_clusters(clusters: Sequence[Hashable]) -> int:
+    """How many distinct clusters the labels ``clusters`` name."""
+    return len(set(clusters))
+
+
+def ci(x: np.ndarray, stat: Stat, idx: Resamples, level: float = 0.95) -> tuple[float, float, float]:
     """(estimate, low, high): ``stat`` of ``x`` and its percentile-bootstrap interval over the resamples
-    ``idx`` (n_boot, n). ``x`` is (n,) or (k, n) (k paired series, resampled together); ``stat`` maps
-    (..., n) resp. (..., k, n) to (...).
+    ``idx`` (:data:`Resamples` of the n episodes). ``x`` is (n,) or (k, n) (k paired series, resampled together);
+    ``stat`` maps (..., n) resp. (..., k, n) to (...).
 
     >>> idx = bootstrap_indices(4, 100, seed=0)
     >>> est, lo, hi = ci(np.array([1.0, 2.0, 3.0, 4.0]), STATS["mean"], idx)
@@ -56,7 +92,10 @@ def ci(x: np.ndarray, stat: Stat, idx: np.ndarray, level: float = 0.95) -> tuple
     (2.5, True)
     """
     x = np.asarray(x, dtype=np.float64)
-    boots = stat(np.moveaxis(x[..., idx], -2, 0) if x.ndim == 2 else x[idx])
+    if isinstance(idx, list):  # resamples of varying size: one stat call each
+        boots = np.array([stat(x[..., i]) for i in idx])
+    else:
+        boots = stat(np.moveaxis(x[..., idx], -2, 0) if x.ndim == 2 else x[idx])
     alpha = (1.0 - level) / 2.0
     lo, hi = np.quantile(boots, [alpha, 1.0 - alpha])
     return float(stat(x[None])[0]), float(lo), float(hi)

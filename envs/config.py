@@ -20,7 +20,8 @@ import numpy as np
 import filters
 from envs.actions import ACCEPTS, DEFAULT_TUNE
 
-SOURCES = ("sim", "otb", "otb_tracker", "video")
+SOURCES = ("sim", "otb", "otb_tracker", "video", "mix")
+MIX_SOURCES = ("sim", "otb", "otb_tracker")  # the parts of source "mix", in the order of mix_weights
 SPLITS = ("train", "val", "test")
 REWARDS = ("rmse", "iou_precision", "success_auc")
 # Longest track (frames). Simulated box sizes are reflected at ``box_size_bounds`` (envs.simulate), so they
@@ -81,6 +82,28 @@ def _optional_path(name: str, value: Any) -> str | None:
     return os.fspath(value)
 
 
+def _trackers(value: Any) -> tuple[str, ...] | None:
+    """None, or a non-empty sequence of distinct non-empty tracker names as a tuple (whether each exists
+    under the OTB root is checked by the source, which reads it)."""
+    if value is None:
+        return None
+    if isinstance(value, str) or not isinstance(value, (Sequence, np.ndarray)) or not all(isinstance(t, str) and t for t in value):
+        raise TypeError(f"trackers={value!r}; allowed: None or a sequence of tracker names (non-empty str)")
+    trackers = tuple(str(t) for t in value)
+    if not trackers or len(set(trackers)) != len(trackers):
+        raise ValueError(f"trackers={trackers!r}; allowed: None or at least one tracker name, each at most once")
+    return trackers
+
+
+def _mix_weights(value: Any) -> tuple[float, float, float]:
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) or len(value) != 3:
+        raise TypeError(f"mix_weights={value!r}; allowed: a (sim, otb, otb_tracker) triple of real numbers in [0, 1e6]")
+    weights = tuple(check_real(f"mix_weights[{i}]", v, 0.0, 1e6) for i, v in enumerate(value))
+    if not sum(weights) > 0:
+        raise ValueError(f"mix_weights={value!r}; allowed: weights >= 0 with a positive sum")
+    return weights  # type: ignore[return-value]
+
+
 def _tune(backend: str, value: Any) -> tuple[str, ...]:
     if value is None:
         return DEFAULT_TUNE[backend]
@@ -96,7 +119,7 @@ def _tune(backend: str, value: Any) -> tuple[str, ...]:
 class EnvConfig:
     """Every argument of ``bboxtune/FilterTune-v0`` and ``bboxtune/FilterRetune-v0`` (units, allowed values)."""
 
-    source: str = "sim"  # "sim" | "otb" (GT + synthetic CMN) | "otb_tracker" (real tracker output) | "video"
+    source: str = "sim"  # "sim" | "otb" (GT + synthetic CMN) | "otb_tracker" (real tracker output) | "video" | "mix"
     backend: str = "ufir_cmn"  # any name in filters.NAMES
     reward: str = "rmse"  # "rmse": log(RMSE_rule / RMSE); "iou_precision" / "success_auc": difference to the rule
     tune: tuple[str, ...] | None = None  # parameters the agent sets; None -> envs.actions.DEFAULT_TUNE[backend]
@@ -108,10 +131,18 @@ class EnvConfig:
     tau_range: tuple[float, float] = (1 / 30, 0.1)  # s, frame interval; within [1e-3, 1]
     box_size_range: tuple[float, float] = (20.0, 200.0)  # px, initial w and h; within box_size_bounds
     box_size_bounds: tuple[float, float] = (4.0, 1000.0)  # px, simulated w and h are reflected here; within [1, 1e5]
+    # sim truth motion: "cv" (constant velocity, σ_w above) | "otb" (fitted to OTB-100, envs.sim_motion: scale-relative
+    # velocity with manoeuvres, log-size random walk; sigma_w_range then only sets the rule's nominal σ_w)
+    motion: str = "cv"
     # OTB sources
     otb_root: str | None = None  # folder of the OTB data; None -> $OTB_ROOT
     split: str = "train"  # "train" | "val" | "test": which sequences episodes are drawn from
     tracker: str = "SiamFC"  # source "otb_tracker": whose output is the measurement (a non-empty name)
+    # "otb_tracker" / "mix": the trackers an episode's tracker is drawn from, uniformly (names under the OTB
+    # root's trackers/, distinct; envs.otb.TRACKER_SPLIT has the default split); None -> (tracker,)
+    trackers: tuple[str, ...] | None = None
+    # source "mix": relative weights of its parts (sim, otb, otb_tracker), each a real in [0, 1e6], sum > 0
+    mix_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
     otb_tau: float = 1 / 30  # s, OTB frame interval (30 fps); in [1e-3, 1]
     cmn_rel_range: tuple[float, float] = (0.01, 0.1)  # source "otb": σ_ξ relative to the box size, log-uniform; within [1e-4, 1]
     otb_sigma_v_rel: float = 0.03  # nominal σ_v relative to the measured box scale (OTB sources); in (0, 10]
@@ -137,6 +168,7 @@ class EnvConfig:
         put("backend", check_choice("backend", self.backend, filters.NAMES))
         put("reward", check_choice("reward", self.reward, REWARDS))
         put("split", check_choice("split", self.split, SPLITS))
+        put("motion", check_choice("motion", self.motion, ("cv", "otb")))
         put("tune", _tune(self.backend, self.tune))
         put("track_length", check_integer("track_length", self.track_length, 8, TRACK_LENGTH_MAX))
         put("window", check_integer("window", self.window, 8, TRACK_LENGTH_MAX // 2))
@@ -164,7 +196,20 @@ class EnvConfig:
         put("video_cache", _optional_path("video_cache", self.video_cache))
         if not isinstance(self.tracker, str) or not self.tracker:
             raise TypeError(f"tracker={self.tracker!r}; allowed: a non-empty tracker name (str)")
+        self._check_mix_fields()
         self._check_video_fields()
+
+    def _check_mix_fields(self) -> None:
+        """``trackers`` and ``mix_weights``: checked, and refused where the source would not use them."""
+        object.__setattr__(self, "trackers", _trackers(self.trackers))
+        object.__setattr__(self, "mix_weights", _mix_weights(self.mix_weights))
+        uses_trackers = self.source == "otb_tracker" or (self.source == "mix" and self.mix_weights[2] > 0)
+        if self.trackers is not None and not uses_trackers:
+            raise ValueError(f"trackers={self.trackers!r} with source={self.source!r}: allowed only with source "
+                             "'otb_tracker', or 'mix' with a positive otb_tracker weight (mix_weights[2])")
+        if self.source != "mix" and self.mix_weights != (1.0, 1.0, 1.0):
+            raise ValueError(f"mix_weights={self.mix_weights!r} with source={self.source!r}: allowed only with "
+                             "source 'mix' (leave the default (1.0, 1.0, 1.0) otherwise)")
 
     def _check_video_fields(self) -> None:
         from envs.video.detectors import DETECTORS

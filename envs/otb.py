@@ -49,6 +49,14 @@ _FOLDER_FIRST_FRAME = {"BlurCar1": 247, "BlurCar3": 3, "BlurCar4": 18, "David": 
 _TIGER1_OMIT = 5  # OTB toolkit initOmit: Tiger1's original 354-line file starts 5 frames early
 _REPLAY_TAU = 0.05  # s, default sampling interval assumed by the filters (seed 000 Car4 tuning: 20 frames/s)
 
+# The default split of the 13 trackers under shared/data/otb/trackers (EnvConfig.trackers): "test" is held out,
+# never trained on, so "unseen tracker" results exist — one of each kind: a strong Siamese tracker (SiamRPN++),
+# a correlation-filter network (CFNet), a classic online SVM (STRUCK) and an online-learned CNN (MDNet).
+TRACKER_SPLIT: dict[str, tuple[str, ...]] = {
+    "train": ("ATOM", "DaSiamRPN", "MEEM", "MUSTer", "Ocean", "Ocean-online", "SiamBAN", "SiamFC", "SiamRPN"),
+    "test": ("SiamRPN++", "CFNet", "STRUCK", "MDNet"),
+}
+
 
 @dataclass(frozen=True, eq=False)
 class OTBSequence:

@@ -47,7 +47,8 @@ class FilterRetuneEnv(TrackEnv):
     the window has no ground truth), others action minus rule.
 
     ## Starting State
-    As FilterTune-v0: ``reset(options={"sequence": ..., "noise_seed": ...})`` pins an episode, arguments
+    As FilterTune-v0: ``reset(options={"sequence": ..., "noise_seed": ..., "tracker": ...})`` pins an
+    episode (the tracker drawn per episode from ``trackers``, a ``mix`` part per noise seed), arguments
     and options are checked the same way, a rejected reset changes nothing, and reset's ``info`` is
     ``{"track": {...}}`` without the true scenario. The first window is already filtered by the rule.
 
@@ -68,8 +69,9 @@ class FilterRetuneEnv(TrackEnv):
     hand it to the later decisions.
 
     ## Arguments
-    Those of FilterTune-v0 (``envs.config.EnvConfig``, checked the same way); ``window`` and ``history``
-    are used here.
+    Those of FilterTune-v0 (``envs.config.EnvConfig``, checked the same way; ``trackers``, ``mix_weights``
+    and ``source="mix"`` included: every part of a mix draws episodes of at least two windows, and the sim
+    part's ``track_length`` must allow that); ``window`` and ``history`` are used here.
 
     >>> import gymnasium as gym, envs
     >>> env = gym.make("bboxtune/FilterRetune-v0", backend="kf_cmn", track_length=200, window=50)
@@ -90,6 +92,8 @@ class FilterRetuneEnv(TrackEnv):
     * v0, hardened (as FilterTune-v0): truth only in the last step's ``info["scenario"]``; checked
       arguments, options and actions; OTB sequences shorter than 2 windows left out of the pool (before,
       drawing one crashed the episode); ``track_length < 2 * window`` refused at construction.
+    * v0, tracker sets and mix (as FilterTune-v0; earlier arguments' episodes unchanged bit for bit):
+      ``trackers``, the ``tracker`` reset option, ``source="mix"``.
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

@@ -26,6 +26,11 @@ The CMN (2) is added to all four coordinates, with σ_ξ on cx, cy and ``size_no
 measured sizes can therefore be <= 0 when the noise is large compared with the box (the metrics score such
 boxes as empty).
 
+Motion models (``Scenario.motion``): "cv" (default) is the model above; "otb" (box tracks only) replaces the
+truth's motion by the one fitted to OTB-100's ground truth — scale-relative centre velocity with manoeuvres and
+a log-size random walk (:mod:`envs.sim_motion`, docs/otb_motion.md) — with the same CMN (2)–(3); ``sigma_w`` and
+``sigma_w_log_size`` are then unused and ``velocity_rms``, ``size_rw`` set the episode's motion level.
+
 Everything is drawn from the ``numpy.random.Generator`` passed in, so an episode is reproducible from its seed.
 """
 
@@ -38,6 +43,9 @@ from typing import NamedTuple
 import numpy as np
 from scipy.signal import lfilter
 
+from envs.sim_motion import OTB_MOTION, draw_extra, otb_paths
+
+MOTIONS = ("cv", "otb")  # truth motion models: constant velocity (seed 000 eq. 1) or fitted to OTB-100
 _NDIMS = (1, 2, 4)  # scalar two-state, centroid (cx, cy), box (cx, cy, w, h)
 _DEFAULT_BOX_X0 = (320.0, 240.0, 64.0, 48.0, 0.0, 0.0, 0.0, 0.0)  # px, px/s: a 64×48 box at a VGA centre
 
@@ -66,8 +74,16 @@ class Scenario:
     sigma_w_log_size: float = 0.002  # 1/s²: acceleration noise std of log w and log h (ndim 4)
     size_noise_ratio: float = 0.5  # σ_ξ of the w, h measurements as a fraction of sigma_xi (ndim 4)
     size_bounds: tuple[float, float] = (4.0, 1000.0)  # px: true w and h are reflected at these bounds (ndim 4)
+    motion: str = "cv"  # "cv": model (1); "otb": envs.sim_motion's fitted OTB motion (ndim 4 only)
+    velocity_rms: float = 1.0  # box scales/s: rms centre velocity σ_r ("otb")
+    size_rw: float = 0.1  # 1/√s: random-walk std σ_ℓ of log w and log h ("otb")
 
     def __post_init__(self) -> None:
+        if self.motion not in MOTIONS or (self.motion == "otb" and self.ndim != 4):
+            raise ValueError(f"motion={self.motion!r} with ndim={self.ndim!r}: allowed {MOTIONS}, 'otb' with ndim 4 only")
+        for name in ("velocity_rms", "size_rw"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"{name}={getattr(self, name)!r} is out of range: allowed finite values > 0")
         if not (math.isfinite(self.psi) and 0.0 <= self.psi < 1.0):
             raise ValueError(f"psi={self.psi!r} is out of range: allowed 0 <= psi < 1")
         for name in ("sigma_w", "sigma_xi", "tau", "sigma_w_log_size", "size_noise_ratio"):
@@ -159,10 +175,14 @@ def simulate(scenario: Scenario, rng: np.random.Generator, n_tracks: int | None 
         raise ValueError(f"n_tracks={n_tracks!r} is out of range: allowed None or an integer >= 1")
     s, B, T = scenario, 1 if n_tracks is None else int(n_tracks), scenario.n_frames
     p0, v0, sigma, sigma_xi, sizes0 = _start(s)
-    w = rng.standard_normal((B, T - 1, len(sigma))) * sigma
+    w = rng.standard_normal((B, T - 1, len(sigma)))
     e = rng.standard_normal((B, T, s.M)) * sigma_xi
-    truth, state, y = _assemble(np.tile(p0, (B, 1)), np.tile(v0, (B, 1)), w, s.tau, s.delta, _colour(e, s.psi), sizes0,
-                                np.asarray(s.size_bounds, dtype=float))
+    if s.motion == "otb":
+        normals, uniforms = rng.standard_normal((B, T + 1, 2)), rng.random((B, T, 2))
+        truth, state, y = _assemble_otb([s] * B, w, normals, uniforms, _colour(e, s.psi))
+    else:
+        truth, state, y = _assemble(np.tile(p0, (B, 1)), np.tile(v0, (B, 1)), w * sigma, s.tau, s.delta, _colour(e, s.psi),
+                                    sizes0, np.asarray(s.size_bounds, dtype=float))
     if n_tracks is None:
         return Track(truth=truth[0], truth_state=state[0], y=y[0], tau=s.tau)
     return Track(truth=truth, truth_state=state, y=y, tau=s.tau)
@@ -170,17 +190,24 @@ def simulate(scenario: Scenario, rng: np.random.Generator, n_tracks: int | None 
 
 def simulate_each(scenarios: list[Scenario], rngs: list[np.random.Generator]) -> list[Track]:
     """One track per (scenario, generator) pair, each equal to ``simulate(scenario, rng)``, in one
-    vectorised pass (the scenarios must share ``n_frames`` and ``ndim``; the random draws stay per generator)."""
+    vectorised pass (the scenarios must share ``n_frames``, ``ndim`` and ``motion``; the random draws stay per
+    generator)."""
     s0 = scenarios[0]
-    if len(rngs) != len(scenarios) or any(s.n_frames != s0.n_frames or s.ndim != s0.ndim for s in scenarios):
-        raise ValueError("simulate_each needs one generator per scenario and scenarios of equal n_frames and ndim")
+    if len(rngs) != len(scenarios) or any((s.n_frames, s.ndim, s.motion) != (s0.n_frames, s0.ndim, s0.motion) for s in scenarios):
+        raise ValueError("simulate_each needs one generator per scenario and scenarios of equal n_frames, ndim and motion")
     starts = [_start(s) for s in scenarios]
-    T, C = s0.n_frames, len(starts[0][2])
-    w, e = np.empty((len(scenarios), T - 1, C)), np.empty((len(scenarios), T, s0.M))
-    for i, (rng, (_, _, sigma, sigma_xi, _)) in enumerate(zip(rngs, starts)):  # in simulate's order: w, then ξ
-        w[i] = rng.standard_normal((T - 1, C)) * sigma
+    T, C, B = s0.n_frames, len(starts[0][2]), len(scenarios)
+    w, e = np.empty((B, T - 1, C)), np.empty((B, T, s0.M))
+    normals, uniforms = np.empty((B, T + 1, 2)), np.empty((B, T, 2))
+    for i, (rng, (_, _, sigma, sigma_xi, _)) in enumerate(zip(rngs, starts)):  # in simulate's order: w, ξ, extras
+        w[i] = rng.standard_normal((T - 1, C)) * (sigma if s0.motion == "cv" else 1.0)
         e[i] = rng.standard_normal((T, s0.M)) * sigma_xi
+        if s0.motion == "otb":
+            normals[i], uniforms[i] = draw_extra(rng, T)
     cmn = np.concatenate([_colour(e[i:i + 1], s.psi) for i, s in enumerate(scenarios)])
+    if s0.motion == "otb":
+        truth, state, y = _assemble_otb(scenarios, w, normals, uniforms, cmn)
+        return [Track(truth=truth[i], truth_state=state[i], y=y[i], tau=s.tau) for i, s in enumerate(scenarios)]
     column = lambda name: np.array([getattr(s, name) for s in scenarios])[:, None, None]  # noqa: E731
     p0, v0, sizes0 = (np.stack([start[k] for start in starts]) for k in (0, 1, 4))
     bounds = np.array([s.size_bounds for s in scenarios])[:, None]  # (B, 1, 2): low, high per track
@@ -216,6 +243,18 @@ def _assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.nda
         v = np.concatenate([v[..., :2], sizes * rate], axis=-1)  # ẇ = w ℓ̇
     y = p + cmn  # (3)
     return p, np.concatenate([p, v], axis=-1), y
+
+
+def _assemble_otb(scenarios: list[Scenario], eps: np.ndarray, normals: np.ndarray, uniforms: np.ndarray,
+                  cmn: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Truth, true state and measurements of "otb" box tracks (one scenario per track) from the drawn noise."""
+    x0 = np.array([s.initial_state[:4] for s in scenarios])
+    step = np.array([s.tau + s.delta for s in scenarios])
+    levels = np.array([(s.velocity_rms, s.size_rw) for s in scenarios])
+    bounds = np.array([s.size_bounds for s in scenarios])
+    p, v = otb_paths(eps, normals, uniforms, x0, step, levels, bounds, OTB_MOTION)
+    y = p + cmn  # (3)
+    return p, np.concatenate([p, v], axis=-1), y
 def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
     return float(rng.uniform(bounds[0], bounds[1])) if bounds[1] > bounds[0] else float(bounds[0])
 
@@ -240,6 +279,7 @@ class ScenarioRanges:
     size: tuple[float, float] = (20.0, 200.0)  # px, initial w and h (independent, log-uniform), ndim 4
     ndim: int = 4  # 1, 2 or 4 (see Scenario)
     size_bounds: tuple[float, float] = (4.0, 1000.0)  # px, where true w and h are reflected (Scenario.size_bounds)
+    motion: str = "cv"  # Scenario.motion; "otb" draws velocity_rms and size_rw (envs.sim_motion), σ_w is unused
 
     def __post_init__(self) -> None:
         for name in ("psi", "sigma_w", "sigma_xi", "tau", "n_frames", "delta", "size"):
@@ -250,15 +290,17 @@ class ScenarioRanges:
             if getattr(self, name)[0] <= 0:
                 raise ValueError(f"{name}={getattr(self, name)!r}: log-uniform ranges need low > 0")
         x0 = (0.0, 0.0, *self.size, 0.0, 0.0, 0.0, 0.0) if self.ndim == 4 else None  # both initial-size ends in bounds
-        Scenario(psi=self.psi[1], tau=self.tau[0], delta=self.delta[0], ndim=self.ndim, size_bounds=self.size_bounds, x0=x0)
+        Scenario(psi=self.psi[1], tau=self.tau[0], delta=self.delta[0], ndim=self.ndim, size_bounds=self.size_bounds, x0=x0,
+                 motion=self.motion)
         Scenario(psi=self.psi[0], tau=self.tau[1], delta=self.delta[1], n_frames=int(self.n_frames[0]))
 
     def sample(self, rng: np.random.Generator) -> Scenario:
-        """Draw one scenario (the x0 of a box puts a box of random size at rest at (320, 240))."""
+        """Draw one scenario (the x0 of a box puts a box of random size at rest at (320, 240)); "otb" motion
+        draws its levels after the other fields, so the "cv" fields of a seed are the same under both."""
         x0 = None
         if self.ndim == 4:
             x0 = (320.0, 240.0, _log_uniform(rng, self.size), _log_uniform(rng, self.size), 0.0, 0.0, 0.0, 0.0)
-        return Scenario(
+        scenario = Scenario(
             psi=_uniform(rng, self.psi),
             sigma_w=_log_uniform(rng, self.sigma_w),
             sigma_xi=_log_uniform(rng, self.sigma_xi),
@@ -269,6 +311,10 @@ class ScenarioRanges:
             x0=x0,
             size_bounds=self.size_bounds,
         )
+        if self.motion == "cv":
+            return scenario
+        velocity_rms, size_rw = OTB_MOTION.sample_levels(rng)
+        return replace(scenario, motion=self.motion, velocity_rms=velocity_rms, size_rw=size_rw)
 
 
 def _box_x0(x: float, y: float, w: float, h: float) -> tuple[float, ...]:

@@ -1,8 +1,12 @@
 """Episode sources: where a track comes from (simulator, OTB ground truth + CMN, real tracker output).
 
-Every episode is a pure function of ``(sequence, noise_seed)``: the env draws the noise seed (and for OTB
-the sequence) from its own ``np_random`` unless ``reset(options=...)`` pins them, so paired comparisons
-can replay exactly the same episode.
+Every episode is a pure function of ``(sequence, noise_seed)`` (and ``tracker`` for "otb_tracker"): the env
+draws the noise seed from its own ``np_random`` and the source derives the rest from it (the sequence, the
+tracker, the part of a "mix") unless ``reset(options=...)`` pins them, so paired comparisons can replay
+exactly the same episode. The generators: ``default_rng(noise_seed)`` the sim scenario and noise,
+``(noise_seed, 0)`` the OTB sequence, ``(noise_seed, 1)`` the "otb" CMN, ``(noise_seed, 2)`` the tracker,
+``(noise_seed, 3)`` the part of a "mix" — independent streams, so adding trackers or a mix changes none of
+the others.
 
 An episode keeps what identifies it (``meta``: sequence, noise seed, τ, tracker — shown to the agent at
 reset) apart from the true scenario that generated its noise (``scenario``: ψ, σ_w, σ_ξ or the relative
@@ -17,15 +21,18 @@ enough keeps its sequence), and pinning a shorter one raises ``ValueError``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from envs.actions import Nominal
-from envs.config import EnvConfig
+from envs.config import MIX_SOURCES, EnvConfig
 from envs.features import box_scale
 from filters.horizon import rule_horizon
+
+if TYPE_CHECKING:
+    from envs.otb import OTBDataset
 
 K_AXIS = 2  # state size of one coordinate's constant-velocity model
 
@@ -47,7 +54,9 @@ def _log_uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
     return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
 
 
-def _nominal(cfg: EnvConfig, sigma_v: float, sigma_w: float, tau: float) -> Nominal:
+def rule_nominal(cfg: EnvConfig, sigma_v: float, sigma_w: float, tau: float) -> Nominal:
+    """The fixed rule's parameters for nominal σ_v, σ_w (px, px/s²) at frame interval ``tau`` (s): N = N_opt
+    within [K, ``cfg.horizon_max``], ψ = ``cfg.nominal_psi``."""
     horizon = rule_horizon(sigma_v, sigma_w, tau, K_AXIS, max_horizon=cfg.horizon_max)
     return Nominal(sigma_w=sigma_w, sigma_v=sigma_v, psi=cfg.nominal_psi, horizon=int(horizon))
 
@@ -55,11 +64,13 @@ def _nominal(cfg: EnvConfig, sigma_v: float, sigma_w: float, tau: float) -> Nomi
 class Source:
     """What the environments draw episodes from: ``draw(sequence, noise_seed)`` (subclasses) and
     ``draw_many(noise_seeds)``, the unpinned episodes of those seeds; ``block`` is how many of them
-    FilterTune-v0 draws and prepares at once; ``n_frames`` the length of every episode when it is fixed."""
+    FilterTune-v0 draws and prepares at once; ``n_frames`` the length of every episode when it is fixed;
+    ``trackers`` those a ``tracker`` argument of ``draw`` may pin (none: the env refuses the option)."""
 
     block = 1
     n_frames: int | None = None
     min_frames = 2
+    trackers: tuple[str, ...] = ()
 
     def require_frames(self, n: int, why: str) -> None:
         """Draw only episodes of at least ``n`` frames (``why``: what needs them, for the error message).
@@ -87,7 +98,7 @@ class SimSource(Source):
         self.ranges = ScenarioRanges(
             psi=cfg.psi_range, sigma_w=cfg.sigma_w_range, sigma_xi=cfg.sigma_xi_range, tau=cfg.tau_range,
             n_frames=(cfg.track_length, cfg.track_length), size=cfg.box_size_range, ndim=4,
-            size_bounds=cfg.box_size_bounds,
+            size_bounds=cfg.box_size_bounds, motion=cfg.motion,
         )
         self.n_frames = cfg.track_length
         self.block = max(1, min(64, 2**15 // cfg.track_length))  # episodes FilterTune-v0 prepares at once
@@ -113,6 +124,10 @@ class SimSource(Source):
         for seed, scenario, track, horizon in zip(noise_seeds, scenarios, tracks, horizons.tolist()):
             meta = {"sequence": None, "noise_seed": seed, "tau": scenario.tau}
             truth = {"psi": scenario.psi, "sigma_w": scenario.sigma_w, "sigma_xi": scenario.sigma_xi}
+            if scenario.motion == "otb":  # σ_w: the rms true centre acceleration, the CV model's equivalent
+                acceleration = np.diff(track.truth_state[:, 4:6], axis=0) / track.tau
+                truth.update(sigma_w=float(np.sqrt(np.mean(acceleration**2))), motion="otb",
+                             velocity_rms=scenario.velocity_rms, size_rw=scenario.size_rw)
             nominal = Nominal(sigma_w=self.sigma_w_nominal, sigma_v=self.sigma_v_nominal, psi=self.cfg.nominal_psi,
                               horizon=horizon)
             episodes.append(Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta,
@@ -122,49 +137,96 @@ class SimSource(Source):
 
 class OTBSource(Source):
     """OTB-100 sequences of one split: ground truth + synthetic CMN ("otb") or a tracker's output
-    ("otb_tracker"). Nominal σ are the config's relative values times the measured box scale."""
+    ("otb_tracker"). Nominal σ are the config's relative values times the measured box scale.
 
-    def __init__(self, cfg: EnvConfig) -> None:
+    "otb_tracker": an episode's tracker is drawn uniformly from ``trackers`` (``cfg.trackers``, None →
+    ``(cfg.tracker,)``) with ``default_rng((noise_seed, 2))``, then its sequence from that tracker's pool — the
+    split's sequences it has output for (MEEM and MUSTer lack 27 of OTB-100) — with ``(noise_seed, 0)`` as for
+    "otb"; with one tracker this is the draw of a single-tracker env, bit for bit. A pinned tracker skips its
+    draw; a pinned sequence with an unpinned tracker re-draws the tracker from the same generator until it
+    has output for the sequence. ``sequences``: the pool (long enough sequences of the split with output of
+    some tracker), ``sequences_of(t)``: tracker ``t``'s pool."""
+
+    def __init__(self, cfg: EnvConfig, dataset: OTBDataset | None = None) -> None:
         from envs.otb import OTBDataset, split
 
         self.cfg = cfg
-        self.dataset = OTBDataset(cfg.otb_root)
+        self.dataset = dataset if dataset is not None else OTBDataset(cfg.otb_root)
         names = split(self.dataset.names)[cfg.split]
+        self._pools: dict[str | None, tuple[str, ...]] = {None: names}
         if cfg.source == "otb_tracker":
-            if cfg.tracker not in self.dataset.trackers:
-                raise ValueError(f"tracker={cfg.tracker!r} not found under {self.dataset.root}; allowed: {self.dataset.trackers}")
-            have = set(self.dataset.tracker_sequences(cfg.tracker))
-            names = tuple(n for n in names if n in have)
-        if not names:
-            raise ValueError(f"no sequences in split {cfg.split!r} for source {cfg.source!r}")
-        self.names = names
-        self._long_enough = frozenset(names)  # the pool: sequences of at least min_frames frames
+            self.trackers = cfg.trackers if cfg.trackers is not None else (cfg.tracker,)
+            unknown = [t for t in self.trackers if t not in self.dataset.trackers]
+            if unknown:
+                field_name = "tracker" if cfg.trackers is None else "trackers"
+                raise ValueError(f"{field_name}={getattr(cfg, field_name)!r}: {unknown} not found under "
+                                 f"{self.dataset.trackers_root}; allowed: {self.dataset.trackers}")
+            have = {t: set(self.dataset.tracker_sequences(t)) for t in self.trackers}
+            self._pools = {t: tuple(n for n in names if n in have[t]) for t in self.trackers}
+        empty = [t for t, pool in self._pools.items() if not pool]
+        if empty:
+            which = f" for tracker(s) {empty}" if cfg.source == "otb_tracker" else ""
+            raise ValueError(f"no sequences in split {cfg.split!r} for source {cfg.source!r}{which}")
+        pooled = set().union(*self._pools.values())
+        self.names = tuple(n for n in names if n in pooled)  # the split's sequences with output of some tracker
+        self._long_enough = frozenset(self.names)  # the pool: sequences of at least min_frames frames
+
+    @property
+    def sequences(self) -> tuple[str, ...]:
+        """The sequences episodes are drawn from (split order): of the split, long enough, with tracker output."""
+        return tuple(n for n in self.names if n in self._long_enough)
+
+    def sequences_of(self, tracker: str) -> tuple[str, ...]:
+        """Tracker ``tracker``'s pool ("otb_tracker"): the sequences its episodes are drawn from."""
+        if tracker not in self.trackers:
+            raise ValueError(f"tracker {tracker!r} is not one of this source's trackers {self.trackers}")
+        return tuple(n for n in self._pools[tracker] if n in self._long_enough)
 
     def require_frames(self, n: int, why: str) -> None:
         """Leave the sequences shorter than ``n`` frames out of the pool (documented in the module docstring)."""
-        self._long_enough = frozenset(name for name in self.names if len(self.dataset.groundtruth(name)) >= n)
-        if not self._long_enough:
+        long_enough = frozenset(name for name in self.names if len(self.dataset.groundtruth(name)) >= n)
+        if not long_enough:
             raise ValueError(f"no sequence of split {self.cfg.split!r} has the {n} frames {why} needs")
+        short = [t for t, pool in self._pools.items() if long_enough.isdisjoint(pool)]
+        if short:
+            raise ValueError(f"no sequence of split {self.cfg.split!r} with output of tracker(s) {short} has the "
+                             f"{n} frames {why} needs")
+        self._long_enough = long_enough
         self.min_frames = n
 
-    def pick(self, rng: np.random.Generator) -> str:
-        """A sequence of the pool, uniformly: names are drawn from ``rng`` until one is long enough."""
+    def pick(self, rng: np.random.Generator, tracker: str | None = None) -> str:
+        """A sequence of the pool (of ``tracker``), uniformly: names are drawn from ``rng`` until one is long enough."""
+        names = self._pools[tracker]
         while True:
-            name = str(self.names[rng.integers(len(self.names))])
+            name = str(names[rng.integers(len(names))])
             if name in self._long_enough:
                 return name
 
-    def draw(self, sequence: str | None, noise_seed: int) -> Episode:
+    def _pick_tracker(self, rng: np.random.Generator, sequence: str | None) -> str:
+        """A tracker of the set, uniformly; for a pinned ``sequence`` re-drawn until it has output for it."""
+        having = [t for t in self.trackers if sequence is None or sequence in self.dataset.tracker_sequences(t)]
+        if not having:
+            raise ValueError(f"options['sequence']={sequence!r}: none of the trackers {self.trackers} has output for it")
+        while True:
+            tracker = str(self.trackers[rng.integers(len(self.trackers))])
+            if tracker in having:
+                return tracker
+
+    def draw(self, sequence: str | None, noise_seed: int, tracker: str | None = None) -> Episode:
         from envs.otb import replay_synthetic, replay_tracker
 
-        name = sequence if sequence is not None else self.pick(np.random.default_rng((noise_seed, 0)))
-        if name not in self.dataset.names:
-            raise ValueError(f"options['sequence']={name!r} is not an OTB sequence under {self.dataset.root}")
+        cfg = self.cfg
+        if sequence is not None and sequence not in self.dataset.names:
+            raise ValueError(f"options['sequence']={sequence!r} is not an OTB sequence under {self.dataset.root}")
+        if tracker is not None and tracker not in self.trackers:
+            raise ValueError(f"options['tracker']={tracker!r}; allowed: one of this env's trackers {self.trackers}")
+        if cfg.source == "otb_tracker" and tracker is None:
+            tracker = self._pick_tracker(np.random.default_rng((noise_seed, 2)), sequence)
+        name = sequence if sequence is not None else self.pick(np.random.default_rng((noise_seed, 0)), tracker)
         gt = self.dataset.groundtruth(name)
         if len(gt) < self.min_frames:
             raise ValueError(f"options['sequence']={name!r} has {len(gt)} frames; this env needs at least "
                              f"{self.min_frames} (sequences shorter than that are left out of its pool)")
-        cfg = self.cfg
         meta: dict[str, Any] = {"sequence": name, "noise_seed": noise_seed, "tau": cfg.otb_tau}
         scenario: dict[str, Any] = {}
         if cfg.source == "otb":
@@ -174,11 +236,69 @@ class OTBSource(Source):
             track = replay_synthetic(gt, psi=psi, sigma_rel=sigma_rel, rng=rng, tau=cfg.otb_tau)
             scenario.update(psi=psi, sigma_rel=sigma_rel)
         else:
-            track = replay_tracker(gt, self.dataset.tracker_boxes(cfg.tracker, name), tau=cfg.otb_tau)
-            meta.update(tracker=cfg.tracker)
+            track = replay_tracker(gt, self.dataset.tracker_boxes(tracker, name), tau=cfg.otb_tau)
+            meta.update(tracker=tracker)
         scale = box_scale(track.y)
-        nominal = _nominal(cfg, cfg.otb_sigma_v_rel * scale, cfg.otb_sigma_w_rel * scale, track.tau)
+        nominal = rule_nominal(cfg, cfg.otb_sigma_v_rel * scale, cfg.otb_sigma_w_rel * scale, track.tau)
         return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta, scenario=scenario)
+
+
+class MixSource(Source):
+    """Source "mix": each episode's part — "sim", "otb" or "otb_tracker" (``envs.config.MIX_SOURCES``) — is drawn
+    with probabilities proportional to ``mix_weights`` from ``default_rng((noise_seed, 3))``; the episode is
+    then that part's episode of the same noise seed (what a single-source env of the part draws, with the
+    same config: nominal σ, the fixed rule and the scenario come from the part), with ``meta["source"]``
+    naming the part. Parts of weight 0 are not built (without OTB weight no OTB data is needed). Pinning a
+    sequence (tracker) is allowed when the noise seed draws a part that has sequences (trackers); the part is
+    never re-drawn, so the options of an episode's ``meta`` replay it."""
+
+    def __init__(self, cfg: EnvConfig) -> None:
+        from envs.otb import OTBDataset
+
+        self.weights = np.array(cfg.mix_weights) / sum(cfg.mix_weights)
+        self.parts: dict[str, Source] = {}
+        dataset = None
+        if any(w > 0 for w in cfg.mix_weights[1:]):
+            try:
+                dataset = OTBDataset(cfg.otb_root)
+            except ValueError as err:
+                raise ValueError(f"source='mix' with mix_weights={cfg.mix_weights!r} draws OTB episodes and needs the "
+                                 f"OTB data (give the otb parts weight 0 to mix without it): {err}") from None
+        for name, weight in zip(MIX_SOURCES, cfg.mix_weights):
+            if weight > 0:
+                part = replace(cfg, source=name, mix_weights=(1.0, 1.0, 1.0),
+                               trackers=cfg.trackers if name == "otb_tracker" else None)
+                self.parts[name] = SimSource(part) if name == "sim" else OTBSource(part, dataset)
+        self.block = self.parts["sim"].block if "sim" in self.parts else 1
+        self.trackers = self.parts["otb_tracker"].trackers if "otb_tracker" in self.parts else ()
+
+    def require_frames(self, n: int, why: str) -> None:
+        for part in self.parts.values():
+            part.require_frames(n, why)
+        self.min_frames = n
+
+    def part_of(self, noise_seed: int) -> str:
+        """The part that the episode of ``noise_seed`` comes from."""
+        return MIX_SOURCES[int(np.random.default_rng((noise_seed, 3)).choice(len(MIX_SOURCES), p=self.weights))]
+
+    def draw(self, sequence: str | None, noise_seed: int, tracker: str | None = None) -> Episode:
+        part = self.part_of(noise_seed)
+        for option, value, allowed in (("sequence", sequence, ("otb", "otb_tracker")), ("tracker", tracker, ("otb_tracker",))):
+            if value is not None and part not in allowed:
+                raise ValueError(f"options[{option!r}]={value!r}: noise_seed={noise_seed} draws a {part!r} episode of "
+                                 f"source 'mix' (mix_weights), which has no {option}s; allowed with parts {allowed}")
+        pinned = {"tracker": tracker} if tracker is not None else {}
+        return _labelled(self.parts[part].draw(sequence, noise_seed, **pinned), part)
+
+    def draw_many(self, noise_seeds: list[int]) -> list[Episode]:
+        """The episodes of ``noise_seeds`` (the sim ones simulated in one vectorised pass), in order."""
+        parts = [self.part_of(seed) for seed in noise_seeds]
+        sim = iter(self.parts["sim"].draw_many([s for s, p in zip(noise_seeds, parts) if p == "sim"]) if "sim" in self.parts else [])
+        return [_labelled(next(sim) if p == "sim" else self.parts[p].draw(None, s), p) for s, p in zip(noise_seeds, parts)]
+
+
+def _labelled(episode: Episode, part: str) -> Episode:
+    return replace(episode, meta={**episode.meta, "source": part})
 
 
 def make_source(cfg: EnvConfig) -> Source:
@@ -189,4 +309,6 @@ def make_source(cfg: EnvConfig) -> Source:
         from envs.video.source import VideoSource
 
         return VideoSource(cfg)
+    if cfg.source == "mix":
+        return MixSource(cfg)
     return OTBSource(cfg)

@@ -21,7 +21,7 @@ from envs.config import EnvConfig
 from envs.render import draw_episode
 from envs.sources import K_AXIS, Episode, make_source
 
-RESET_OPTIONS = ("sequence", "noise_seed")
+RESET_OPTIONS = ("sequence", "noise_seed", "tracker")
 
 
 def _seed_value(name: str, value: Any) -> int:
@@ -35,7 +35,8 @@ def _seed_value(name: str, value: Any) -> int:
 def check_reset_args(seed: Any, options: Any) -> tuple[int | None, dict[str, Any]]:
     """``reset``'s ``seed`` and ``options`` checked (TypeError / ValueError naming the argument): ``seed`` None
     or an integer >= 0; ``options`` None or a mapping with the keys ``RESET_OPTIONS`` only — ``noise_seed``
-    None or an integer >= 0, ``sequence`` None or a str. Options set to None are dropped (= not given)."""
+    None or an integer >= 0, ``sequence`` and ``tracker`` None or a str. Options set to None are dropped (= not
+    given)."""
     seed = None if seed is None else _seed_value("seed", seed)
     if options is None:
         return seed, {}
@@ -47,11 +48,12 @@ def check_reset_args(seed: Any, options: Any) -> tuple[int | None, dict[str, Any
     checked: dict[str, Any] = {}
     if options.get("noise_seed") is not None:
         checked["noise_seed"] = _seed_value("options['noise_seed']", options["noise_seed"])
-    sequence = options.get("sequence")
-    if sequence is not None:
-        if not isinstance(sequence, str):
-            raise TypeError(f"options['sequence']={sequence!r} has type {type(sequence).__name__}; allowed: None or a sequence name (str)")
-        checked["sequence"] = sequence
+    for key in ("sequence", "tracker"):
+        value = options.get(key)
+        if value is not None:
+            if not isinstance(value, str):
+                raise TypeError(f"options[{key!r}]={value!r} has type {type(value).__name__}; allowed: None or a {key} name (str)")
+            checked[key] = value
     return seed, checked
 
 
@@ -98,11 +100,19 @@ class TrackEnv(gym.Env):
         return self.np_random.integers(2**62, size=count).tolist()
 
     def _draw(self, options: dict[str, Any]) -> Episode:
-        """The episode checked ``options`` pin (or a fresh one from ``np_random``)."""
+        """The episode checked ``options`` pin (or a fresh one from ``np_random``); a ``tracker`` option only
+        where the source has trackers, and one of them (ValueError naming the option)."""
+        tracker = options.get("tracker")
+        if tracker is not None and tracker not in self.source.trackers:
+            allowed = (f"one of this env's trackers {self.source.trackers}" if self.source.trackers else
+                       f"source {self.config.source!r} here has no trackers (only 'otb_tracker' and 'mix' with "
+                       "mix_weights[2] > 0 have)")
+            raise ValueError(f"options['tracker']={tracker!r}; allowed: {allowed}")
         noise_seed = options.get("noise_seed")
         if noise_seed is None:
             noise_seed = self._noise_seeds(1)[0]
-        return self.source.draw(options.get("sequence"), noise_seed)
+        pinned = {"tracker": tracker} if tracker is not None else {}
+        return self.source.draw(options.get("sequence"), noise_seed, **pinned)
 
     @staticmethod
     def rule_params(ep: Episode) -> dict[str, np.ndarray]:

@@ -18,8 +18,9 @@ class FilterTuneEnv(TrackEnv):
     ## Description
     One episode is one track of bounding boxes: a simulated constant-velocity box with Gauss–Markov coloured
     measurement noise (``source="sim"``), OTB-100 ground truth corrupted with such noise (``"otb"``), a
-    real tracker's OTB-100 output (``"otb_tracker"``) or a detector's boxes on a synthetic video
-    (``"video"``). The agent sees a summary of the *measurements* and chooses the smoothing filter's
+    real tracker's OTB-100 output (``"otb_tracker"``; the tracker drawn per episode from ``trackers``), a
+    detector's boxes on a synthetic video (``"video"``) or, per episode, one of sim / otb / otb_tracker
+    drawn with ``mix_weights`` (``"mix"``: one policy for all three). The agent sees a summary of the *measurements* and chooses the smoothing filter's
     parameters (ψ, horizon N, noise scales) for the whole track; the filter (``backend``) then runs over the
     track and the reward compares it with the fixed rule of the literature (N = N_opt(σ_v, σ_w, τ) with
     nominal σ, ψ = ``nominal_psi``) on the same measurements.
@@ -41,6 +42,16 @@ class FilterTuneEnv(TrackEnv):
     round-off and clipped — nothing else is clipped); a non-numeric or bool dtype raises ``TypeError``.
     ``env.unwrapped.score(actions)`` takes a batch (A, d), A >= 1, with the same checks.
 
+    "Trust the measurement" (no smoothing) is an action for every back end: N = 2 (a = -1), σ_w at the top
+    (+1), σ_v at the bottom (-1), ψ = 0 (-1) for ``ufir_cmn`` and ψ = 0.99 (+1) for ``kf_cmn``. The estimates
+    then equal the measurements exactly (to round-off) for ``ufir``, ``ufir_cmn``, ``oufir`` and ``fir``, and
+    within 0.1 % of the box scale for ``kf_cmn`` (at most 3.2e-4 on simulated tracks). With the default
+    ranges ``kf`` and ``ukf`` stay up to 7 % of the box scale away (simulated tracks at τ = 1/30 s; 0.2 % on
+    tracker output) and ``ofir`` up to 32 % (17 %; its horizon-start prior ties the estimate to the previous
+    measurement unless σ_w/σ_v is large); the opt-ins ``sigma_decades=2.5`` (``kf``, ``ukf``: within 1e-4)
+    and ``tune=("horizon", "sigma_w", "sigma_v"), sigma_decades=2.5`` (``ofir``: within 2e-5) reach it
+    (maxima of |estimate − y| / box scale over a track; tests/envs/test_trust_measurement.py).
+
     ## Observation Space
     ``Box(-inf, inf, (20,), float32)``: features of the measured boxes only, never the truth or the true
     ψ/σ — the table in ``envs.features`` (log box scale [log px], log τ [log s], log-variances of first and
@@ -56,19 +67,27 @@ class FilterTuneEnv(TrackEnv):
     ## Starting State
     ``reset`` draws an episode: for ``sim`` a scenario (ψ ~ U(psi_range), σ_w, σ_ξ log-uniform over their
     ranges, τ ~ U(tau_range)) and its noise; for OTB sources a sequence of ``split`` (and for ``otb`` the
-    CMN level and ψ). ``reset(options={"sequence": name, "noise_seed": s})`` pins an episode (``sequence``
-    only for OTB and video sources), so that different methods can be compared on identical data;
-    ``noise_seed`` is an integer >= 0 and ``sequence`` a str (None = not given); another key, type or
-    value raises ``ValueError`` / ``TypeError`` naming the option, as does a ``seed`` that is not None or an
-    integer >= 0. A rejected reset changes nothing: the env keeps its current episode and ``np_random``.
+    CMN level and ψ; for ``otb_tracker`` first the tracker, uniformly from ``trackers``, then a sequence it
+    has output for); for ``mix`` first the part (sim / otb / otb_tracker, probabilities ∝ ``mix_weights``),
+    then that part's episode of the same noise seed. ``reset(options={"sequence": name, "noise_seed": s,
+    "tracker": t})`` pins an episode (``sequence`` only for OTB and video sources and OTB parts of a mix,
+    ``tracker`` only for tracker episodes, one of the env's ``trackers``), so that different methods can be
+    compared on identical data; ``noise_seed`` is an integer >= 0, ``sequence`` and ``tracker`` a str (None
+    = not given); another key, type or value raises ``ValueError`` / ``TypeError`` naming the option, as
+    does a ``seed`` that is not None or an integer >= 0. A rejected reset changes nothing: the env keeps
+    its current episode and ``np_random``. ``env.unwrapped.source.sequences`` and ``.trackers`` list what an
+    OTB source draws from (``sequences_of(tracker)``: one tracker's sequences; MEEM and MUSTer lack 27).
 
     ``reset``'s ``info`` is ``{"track": {...}}``: what identifies the episode — ``sequence``, ``noise_seed``,
     ``tau`` (also in the observation), ``tracker`` for ``otb_tracker``, ``detector`` and ``n_missing``
-    (frames without a detection, visible in the measurements) for ``video`` — never the true scenario,
-    which is revealed only in the step's ``info["scenario"]`` (see Episode End).
+    (frames without a detection, visible in the measurements) for ``video``, ``source`` (the part) for
+    ``mix`` — never the true scenario, which is revealed only in the step's ``info["scenario"]`` (see
+    Episode End).
 
-    Every episode is a pure function of its noise seed (and sequence); without options the seed is the
-    next draw from ``np_random``. For speed the ``sim`` source draws and prepares (simulation, rule run, rule
+    Every episode is a pure function of its noise seed (and sequence, tracker); without options the seed is
+    the next draw from ``np_random``; the sequence, tracker and mix part come from independent generators
+    seeded with it (``envs.sources``), so passing ``info["track"]``'s sequence, noise_seed and tracker as
+    options replays it. For speed the ``sim`` source draws and prepares (simulation, rule run, rule
     scores, observation) a block of up to 64 unpinned episodes at once — batched over the block — and hands
     them out one per reset: the episodes, their order and every value are the same as one at a time (the
     tests check bit-identity with the pinned episode), but ``np_random`` advances a block at a time.
@@ -80,7 +99,7 @@ class FilterTuneEnv(TrackEnv):
     ``precision20``, ``iou_precision`` (each also with a ``rule_`` prefix), ``n_frames``, ``params`` and
     ``rule_params`` (the physical parameters applied), ``track`` (as at reset) and ``scenario``: the truth,
     now that the decision is made — ``psi``, ``sigma_w`` (px/s²), ``sigma_xi`` (px) for ``sim``; ``psi``,
-    ``sigma_rel`` for ``otb``; empty for ``otb_tracker`` and ``video``. ``env.unwrapped.score(actions)``
+    ``sigma_rel`` for ``otb``; empty for ``otb_tracker`` and ``video``; the part's for ``mix``. ``env.unwrapped.score(actions)``
     scores many actions (A, d) on the current episode in one vectorised call and returns the same keys as
     arrays (A,) plus ``reward``. A step after the end raises ``RuntimeError`` (call ``reset``).
 
@@ -91,6 +110,15 @@ class FilterTuneEnv(TrackEnv):
     naming the argument. ``track_length`` (sim and video) is at most 100,000 frames
     (``envs.config.TRACK_LENGTH_MAX``); simulated box sizes are reflected at ``box_size_bounds`` (default
     4 to 1000 px, ``envs.simulate``), so they stay plausible at any length.
+
+    ``trackers`` (``otb_tracker``, ``mix``): the tracker names an episode's tracker is drawn from (each must
+    exist under the OTB root; None → ``(tracker,)``, the single-tracker env of before). The default tracker
+    split is ``envs.otb.TRACKER_SPLIT``: ``"test"`` = SiamRPN++, CFNet, STRUCK, MDNet (held out, never
+    trained on), ``"train"`` = the other 9. ``mix_weights`` (sim, otb, otb_tracker), default (1, 1, 1):
+    each part's relative probability (reals >= 0, sum > 0; a part of weight 0 is never drawn and needs no
+    data — OTB parts need ``otb_root`` / $OTB_ROOT). Arguments the source would not use are refused, not
+    ignored: ``trackers`` with another source (or with ``mix_weights[2] == 0``), ``mix_weights`` other than
+    the default without ``source="mix"``. Observation and action spaces do not depend on the source.
 
     >>> import gymnasium as gym, envs
     >>> env = gym.make("bboxtune/FilterTune-v0", backend="ufir_cmn", source="sim", track_length=300)
@@ -113,6 +141,10 @@ class FilterTuneEnv(TrackEnv):
       rejected call leaves the env usable; simulated box sizes are reflected at ``box_size_bounds``
       (before, they grew without bound on long tracks: 1e13 px at 10,000 frames) and ``track_length`` is
       at most 100,000; no passive env checker by default.
+    * v0, tracker sets and mix (no change to any episode of the earlier arguments, checked bit for bit):
+      ``trackers`` (the tracker drawn per episode), the ``tracker`` reset option, ``source="mix"`` with
+      ``mix_weights``, ``info["track"]["source"]`` for mix episodes, ``source.sequences`` / ``.trackers``;
+      "trust the measurement" documented and tested per back end (Action Space).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

@@ -169,8 +169,11 @@ class FIRFilter(Filter):
         # as if every window were full; the start-up frames n < L_c − 1, where that is wrong, are overwritten below
         W = self._full_gains(gparams, T)
         clean = bool(valid.all())
-        X = correlate(z if clean else np.where(valid, z, 0.0), W[:, :1] if positions_only else W, group, wrap=True)
-        if positions_only:  # velocities of full windows left NaN (start-up and fallback frames still get theirs)
+        # positions only: velocities of clean full windows left NaN (start-up and fallback frames still get theirs);
+        # with missing samples both (UFIR's _masked corrects windows holding a NaN from the whole kernel estimate)
+        X = correlate(z if clean else np.where(valid, z, 0.0), W[:, :1] if positions_only and clean else W, group,
+                      wrap=True)
+        if X.shape[2] == 1:
             X = np.concatenate([X, np.full_like(X, np.nan)], axis=2)
         if clean:  # no window holds a NaN
             self._startup(X, z, valid, np.zeros((C, T), bool), group, gparams, L_c)

@@ -150,8 +150,9 @@ class OFIR(KalmanWindowFIR):
     def scan_start(self, y: np.ndarray, valid: np.ndarray, channel: np.ndarray, first: np.ndarray,
                    params: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """The window's KF starts after its oldest valid sample a, from the prior [y_a, 0] with covariance P0."""
-        T = y.shape[1]
+        T = y.shape[-1]
         following = np.minimum.accumulate(np.where(valid, np.arange(T), T)[:, ::-1], axis=1)[:, ::-1]
         a = following[channel, first]  # the windows passed here hold at least 2 valid samples: a < T
-        mean = np.stack([y[channel, a], np.zeros(a.size)], axis=1)
+        y_a = y[:, channel, a]
+        mean = np.stack([y_a, np.zeros_like(y_a)], axis=-1)
         return a + 1, mean, self.scaled_prior(params["sigma_v"])

@@ -29,7 +29,7 @@ import scipy.linalg as sla
 
 from filters.fir_core import FIRFilter, check_fir_params
 from filters.model import matrix_powers
-from filters.window_scan import BlockLayout, FrameModel, window_estimates
+from filters.window_scan import DATA, STRUCTURE, BlockLayout, FrameModel, window_estimates
 
 SCAN_SAMPLES = 1 << 18  # channel-frames per batch of the window scan (3 arrays of 14 floats each: ~90 MB)
 COND_MAX = 1e8  # bound on cond(Ψ_Y/σ_v²) above which the ML least-squares form replaces the Cholesky form
@@ -197,48 +197,71 @@ class KalmanWindowFIR(FIRFilter):
     def scan_start(self, y: np.ndarray, valid: np.ndarray, channel: np.ndarray, first: np.ndarray,
                    params: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """How the KF over windows starting at frame ``first`` (P,) of channels ``channel`` (P,) begins, for
-        :mod:`filters.window_scan`: the first frame whose element the window composes, and the prior mean (P, 2)
-        and covariance (P, 2, 2) of the state before it (None: a flat prior). ``y`` (C', T) scaled by σ_v,
-        ``valid`` (C', T), ``params`` arrays (P,). Default: flat prior before the window (OUFIR)."""
+        :mod:`filters.window_scan`: the first frame whose element the window composes, and the prior mean (k, P, 2)
+        and covariance (P, 2, 2) of the state before it (None: a flat prior). ``y`` (k, C', T) scaled by σ_v (k
+        channels sharing the missing frames ``valid`` (C', T)), ``params`` arrays (P,). Default: flat prior before
+        the window (OUFIR)."""
         return first, None, None
 
     def _masked(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, cs: np.ndarray, ns: np.ndarray,
                 L_w: np.ndarray, group: np.ndarray, gparams: dict[str, np.ndarray]) -> None:
-        """Full windows holding a NaN (frames (cs, ns), lengths L_w), all at once by the associative scan of
-        :mod:`filters.window_scan` (O(1) compositions per window, whatever L), in batches of channels; the rare
-        window the scan cannot form from one prefix and one suffix runs its own KF (:meth:`_kalman_windows`)."""
+        """Full windows holding a NaN (frames (cs, ns), lengths L_w = horizon + EXTRA_SAMPLES), all at once by the
+        associative scan of :mod:`filters.window_scan` (O(1) compositions per window, whatever L), in batches of
+        channels. Channels with the same gain parameters, missing frames and requested windows (e.g. the four
+        coordinates of a box track) share one scan: A, C and J are composed once, their b and η side by side
+        (:class:`filters.window_scan.Elements`). The rare window the scan cannot form from one prefix and one
+        suffix runs its own KF (:meth:`_kalman_windows`)."""
         if cs.size == 0:
             return
-        channels, local = np.unique(cs, return_inverse=True)
+        if np.any(L_w != gparams["horizon"][group[cs]] + self.EXTRA_SAMPLES):
+            raise ValueError(f"{self.name}: the window scan takes full windows only (L_w = horizon + "
+                             f"{self.EXTRA_SAMPLES}); start-up windows run the KF of _startup")
         T = z.shape[1]
+        channels, local = np.unique(cs, return_inverse=True)
+        wanted = np.zeros((channels.size, T), bool)
+        wanted[local, ns] = True
+        key = np.hstack([group[channels].astype(np.int64)[:, None].view(np.uint8),
+                         np.packbits(valid[channels], axis=1), np.packbits(wanted, axis=1)])
+        _, kind, size = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        order = np.argsort(kind.reshape(-1), kind="stable")  # channels of one kind together
+        offset = np.cumsum(size) - size
         axis = self.model.axis()
-        per = {k: v[group[channels]] for k, v in gparams.items()}
-        L = per["horizon"] + self.EXTRA_SAMPLES  # one window length per channel: the block length of its scan
         step = max(1, SCAN_SAMPLES // T)
-        work = np.empty((2, 14, min(step, channels.size) * T))  # prefix and suffix compositions of a batch
-        for lo_ch in range(0, channels.size, step):
-            part = slice(lo_ch, lo_ch + step)
-            wins = np.flatnonzero((local >= lo_ch) & (local < lo_ch + step))
-            ch, c, n = channels[part], local[wins] - lo_ch, ns[wins]
-            sv = per["sigma_v"][part]
-            q = (per["sigma_w"][part] / sv) ** 2  # Q = (σ_w/σ_v)² B Bᵀ in units of σ_v
-            y, v = z[ch] / sv[:, None], valid[ch]
-            layout = BlockLayout(L[part], T)
-            frames = (layout.channel, layout.frame)
-            prefix, suffix = layout.scans(FrameModel(axis.F, axis.B[:, 0], q[layout.channel], y[frames], v[frames]),
-                                          work)
-            first = n - L_w[wins] + 1
-            counts = np.concatenate([np.zeros((ch.size, 1), np.int64), np.cumsum(v, axis=1)], axis=1)
-            ok = counts[c, n + 1] - counts[c, first] >= 2  # fewer than 2 valid samples: NaN (fir_core's fallback)
-            params = {k: val[part][c[ok]] for k, val in per.items()}
-            lo, mean, cov = self.scan_start(y, v, c[ok], first[ok], params)
-            est = np.full((wins.size, 2), np.nan)
-            est[ok], inside = window_estimates(layout, prefix, suffix, L[part], c[ok], lo, n[ok], mean, cov)
-            X[cs[wins], n] = est * sv[c, None]
-            if inside.any():
-                odd = wins[ok][inside]
-                self._kalman_windows(X, z, valid, cs[odd], ns[odd] - L_w[odd] + 1, ns[odd], ns[odd],
-                                     {k: v[group[cs[odd]]] for k, v in gparams.items()})
+        for k in np.unique(size).tolist():  # kinds of k channels each
+            members = order[offset[size == k][:, None] + np.arange(k)]  # (R, k) indices into channels
+            E = min(step, members.shape[0]) * T
+            work = (np.empty((2, len(STRUCTURE), E)), np.empty((2, len(DATA), k, E)))  # prefix and suffix
+            for part in (members[i:i + step] for i in range(0, members.shape[0], step)):
+                self._scan_batch(X, z, valid, channels[part], wanted[part[:, 0]], group, gparams, axis, work)
+
+    def _scan_batch(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, members: np.ndarray, wanted: np.ndarray,
+                    group: np.ndarray, gparams: dict[str, np.ndarray], axis: Any,
+                    work: tuple[np.ndarray, np.ndarray]) -> None:
+        """:meth:`_masked` for R kinds of k channels ``members`` (R, k) sharing parameters and missing frames, at the
+        frames ``wanted`` (R, T)."""
+        T = z.shape[1]
+        rep = members[:, 0]
+        per = {name: v[group[rep]] for name, v in gparams.items()}
+        L = per["horizon"] + self.EXTRA_SAMPLES  # one window length per channel: the block length of its scan
+        sv = per["sigma_v"]
+        q = (per["sigma_w"] / sv) ** 2  # Q = (σ_w/σ_v)² B Bᵀ in units of σ_v
+        y, v = z[members.T] / sv[:, None], valid[rep]  # y (k, R, T)
+        layout = BlockLayout(L, T)
+        c, t = layout.channel, layout.frame
+        prefix, suffix = layout.scans(FrameModel(axis.F, axis.B[:, 0], q[c], y[:, c, t], v[c, t]), work)
+        r, n = np.nonzero(wanted)
+        first = n - L[r] + 1
+        counts = np.concatenate([np.zeros((rep.size, 1), np.int64), np.cumsum(v, axis=1)], axis=1)
+        ok = counts[r, n + 1] - counts[r, first] >= 2  # fewer than 2 valid samples: NaN (fir_core's fallback)
+        lo, mean, cov = self.scan_start(y, v, r[ok], first[ok], {name: a[r[ok]] for name, a in per.items()})
+        est = np.full((members.shape[1], r.size, 2), np.nan)
+        est[:, ok], inside = window_estimates(layout, prefix, suffix, L, r[ok], lo, n[ok], mean, cov)
+        X[members[r].T, n] = est * sv[r, None]
+        if inside.any():
+            odd = np.flatnonzero(ok)[inside]
+            cs, ns = members[r[odd]].ravel(), np.repeat(n[odd], members.shape[1])
+            self._kalman_windows(X, z, valid, cs, ns - L[r[odd]].repeat(members.shape[1]) + 1, ns, ns,
+                                 {name: a[group[cs]] for name, a in gparams.items()})
 
     def _kalman_windows(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, cs: np.ndarray, first: np.ndarray,
                         emit: np.ndarray, last: np.ndarray, params: dict[str, np.ndarray]) -> None:

@@ -15,8 +15,9 @@ one output point at a time, used as the reference in the tests and the benchmark
 Implementation (all vectorised over channels; the only Python loops are over a few start-up-length buckets and
 the K = 2 state columns): full windows without NaN use the cached gain ``(C̄ᵀC̄)⁻¹C̄ᵀ`` (QR, :func:`ls_gains`)
 as an FIR kernel (:mod:`filters.fir_core`); start-up frames use the forward batch form (notes §1.1) whose
-normal equations are cumulative sums over frames; full windows with NaN solve their own normal equations, whose
-entries are FFT convolutions of per-frame signals with per-lag kernels — no per-window gains.
+normal equations are cumulative sums over frames; full windows with NaN solve their own normal equations, the
+clean window's corrected by lag moments of per-frame signals (missing frames, undifferenced rows) — no per-window
+gains.
 
 Conventions (shared with :mod:`filters.fir_core`): frame 0 is the first frame; start-up frames n < N − 1 use
 all samples so far (growing horizon, "m = 0"); missing samples (NaN) are dropped from the window's least
@@ -30,10 +31,10 @@ from functools import lru_cache
 from typing import Any, ClassVar
 
 import numpy as np
-import scipy.fft as sfft
 
 from filters.fir_core import FIRFilter, check_fir_params
 from filters.model import constant_velocity, matrix_powers
+from filters.lag_moments import lag_moments, lag_moments_real, lag_polynomial, linear_product
 
 
 class UFIR(FIRFilter):
@@ -108,52 +109,86 @@ class UFIR(FIRFilter):
 
     def _masked(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, cs: np.ndarray, ns: np.ndarray,
                 L_w: np.ndarray, group: np.ndarray, gparams: dict[str, np.ndarray]) -> None:
-        """Full windows holding a NaN (frames (cs, ns)), all at once: with rows ``r_k = h_k − Ψ_{n−k} h_{k+1}``
-        (``h_k = H F^{−k}``, lag k = n − l < N; missing samples give no row) the window's normal equations
-        ``C̄ᵀC̄ = Σ_k r_kᵀ r_k`` and ``C̄ᵀZ = Σ_k r_kᵀ z_{n−k}`` are causal convolutions of per-frame signals
-        (row present, Ψ_l, Ψ_l², z_l, Ψ_l z_l) with per-lag kernels — evaluated by FFT for every frame of the
-        affected channels, independent of the number of distinct NaN patterns — and solved in closed form."""
+        """Full windows holding a NaN (frames (cs, ns)), all at once, as corrections of the clean window. With rows
+        ``r_k = h_k − Ψ_{n−k} h_{k+1}`` (``h_k = H F^{−k}``, lag k = n − l < N; a missing sample gives no row, one
+        after a missing sample the undifferenced row h_k) a window's normal equations are ``G x = E``,
+        ``G = Σ_k r_kᵀ r_k``, ``E = Σ_k r_kᵀ z_{n−k}``. The clean window (every row ``d_k = h_k − ψ h_{k+1}``, data
+        read with 0 at missing samples) has the constant ``G_c`` and ``E_c = G_c x_c``, where x_c is the kernel
+        estimate already in X. Relative to it a missing frame l removes ``d_kᵀ d_k`` from G and adds
+        ``ψ d_kᵀ y_{l−1}`` to E; an undifferenced row adds ``h_kᵀ h_k − d_kᵀ d_k`` to G and ``ψ h_{k+1}ᵀ y_l`` to E.
+        For the CV model h_k is linear in k, so each correction is a lag moment Σ_k k^p s_{n−k}, p <= 2, of a
+        per-frame signal (:func:`lag_moments`, exact for the 0/1 signals; :func:`lag_moments_real`): no per-window
+        gains, no FFT; one pass per channel group (ψ, N), whose coefficients are scalars. Observability is decided
+        exactly from the integer moments (row counts and lag sums)."""
         if cs.size == 0:
             return
         channels, row = np.unique(cs, return_inverse=True)
+        T = z.shape[1]
         v = valid[channels]
         psi = gparams["psi"][group[channels]] if "psi" in gparams else np.zeros(channels.size)
         plain, diff = row_kinds(v)
-        Psi, Z = differenced(z[channels], diff, psi)
-        present = v.astype(float)
-        signals = (present, present * Psi, present * Psi**2, Z, Psi * Z)
-        N, kernel_of = np.unique(gparams["horizon"][group[channels]], return_inverse=True)  # rows per window
-        axis = self.model.axis()
-        h = back_projected_rows(axis.F, axis.H, int(N.max()) + 1)[::-1]  # h[k] = H F^{−k}
-        lag_ok = np.arange(N.max())[None, :] < N[:, None]  # (G', N_max) lags inside each group's horizon
-        hk, hk1 = h[:-1].T, h[1:].T  # (2, N_max) components of h_k and h_{k+1}
-        sym = lambda i, j: hk[i] * hk1[j] + hk[j] * hk1[i]  # noqa: E731
-        terms = {  # quantity: [(signal index, sign, kernel over lag k)]
-            "G00": [(0, 1, hk[0] ** 2), (1, -1, sym(0, 0)), (2, 1, hk1[0] ** 2)],
-            "G01": [(0, 1, hk[0] * hk[1]), (1, -1, sym(0, 1)), (2, 1, hk1[0] * hk1[1])],
-            "G11": [(0, 1, hk[1] ** 2), (1, -1, sym(1, 1)), (2, 1, hk1[1] ** 2)],
-            "E0": [(3, 1, hk[0]), (4, -1, hk1[0])],
-            "E1": [(3, 1, hk[1]), (4, -1, hk1[1])],
-        }
-        if not Psi.any():  # white-noise UFIR: only the terms without Ψ
-            terms = {name: parts[:1] for name, parts in terms.items()}
-        used = sorted({i for parts in terms.values() for i, _, _ in parts})
-        T = z.shape[1]
-        n_fft = sfft.next_fast_len(T + int(N.max()) - 1, real=True)
-        spectra = dict(zip(used, sfft.rfft(np.stack([signals[i] for i in used]), n_fft, axis=-1)))
-        sums = {}
-        for name, parts in terms.items():
-            acc = 0.0
-            for i, sign, kernel in parts:
-                acc = acc + sign * spectra[i] * sfft.rfft(kernel * lag_ok, n_fft, axis=-1)[kernel_of]
-            sums[name] = sfft.irfft(acc, n_fft, axis=-1)[:, :T]
-        x = solve_2x2(sums["G00"], sums["G01"], sums["G11"], sums["E0"], sums["E1"])  # (C', T, 2)
-        cum = np.zeros((4, channels.size, T + 1))
-        np.cumsum(np.stack(row_statistics(plain, diff)), axis=2, out=cum[:, :, 1:])  # exact integer sums
-        before = np.maximum(np.arange(T)[None, :] - N[kernel_of, None] + 1, 0)  # frames before the window
-        counts = cum[:, :, 1:] - np.take_along_axis(cum, np.broadcast_to(before, cum[:, :, 1:].shape), axis=2)
-        x[~determined(*counts, psi[:, None])] = np.nan  # decided exactly, not by rounding in the FFT sums
-        X[cs, ns] = x[row, ns]
+        coloured = bool((psi[:, None] * diff).any())  # else ψ = 0 or no differenced row: d_k = h_k
+        integer = np.stack([~v, plain] if coloured else [~v]).astype(float)  # missing frame, undifferenced row
+        if coloured:
+            y0 = np.where(v, z[channels], 0.0)
+            real = np.zeros((2, *y0.shape))
+            real[0, :, 1:] = ~v[:, 1:] * y0[:, :-1]  # y_{l−1} at missing frames l
+            real[1] = plain * y0
+        c0, c1 = lag_polynomial(self.model.axis().F, self.model.axis().H)  # h_k = c0 + k c1
+        N_of = gparams["horizon"][group[channels]]
+        kinds, kind_of = np.unique(np.stack([N_of, psi], axis=1), axis=0, return_inverse=True)
+        kind_of = kind_of.reshape(-1)
+        for k, (N_val, p) in enumerate(kinds.tolist()):
+            N = int(N_val)
+            local = np.flatnonzero(kind_of == k)
+            G, E = _correction_matrices(c0, c1, N, p, coloured)
+            mi = lag_moments(integer[:, local], N, 3).reshape(-1, local.size * T)  # row = power × signal
+            x_c = X[channels[local]].reshape(-1, 2).T  # (2, C_g T) kernel estimates of the clean window
+            rhs = E[:, :2] @ x_c
+            if coloured:
+                rhs += E[:, 2:] @ lag_moments_real(real[:, local], N).reshape(-1, local.size * T)
+            g = G[:, :1] + G[:, 1:] @ mi
+            x = solve_2x2(g[0], g[1], g[2], rhs[0], rhs[1])
+            lag_sum = N * (N - 1) / 2
+            n_missing, lag_missing = mi[0], mi[integer.shape[0]]
+            n_plain = mi[1] if coloured else 0.0
+            lag_plain = mi[integer.shape[0] + 1] if coloured else 0.0
+            # determined() reads frame sums only through sum_plain − sum_diff with one row of each kind, where the
+            # negated lag sums (n − l) give the same difference l_plain − l_diff
+            ok = determined(n_plain, N - n_missing - n_plain, -lag_plain, lag_missing + lag_plain - lag_sum, p)
+            x[~ok] = np.nan
+            mine = np.flatnonzero(kind_of[row] == k) if kinds.shape[0] > 1 else slice(None)
+            rank = np.empty(channels.size, np.int64)
+            rank[local] = np.arange(local.size) * T
+            X[cs[mine], ns[mine]] = x[rank[row[mine]] + ns[mine]]
+
+
+def _correction_matrices(c0: np.ndarray, c1: np.ndarray, N: int, psi: float,
+                         coloured: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients of :meth:`UFIR._masked` for windows of N rows with ψ = ``psi``: G (3, 1 + 3S) maps
+    [1, lag moments (power-major: p = 0, 1, 2 of each of the S = 1 or 2 signals missing, undifferenced)] to the
+    entries 00, 01, 11 of C̄ᵀC̄; E (2, 2 + 4) maps [x_c, lag moments p = 0, 1 of y_{l−1} at missing frames and of y_l
+    on undifferenced rows] to C̄ᵀZ (only the first 2 columns without ``coloured``)."""
+    h = [(c0[i], c1[i]) for i in range(2)]
+    h1 = [(c0[i] + c1[i], c1[i]) for i in range(2)]  # h_{k+1}
+    d = [(c0[i] - psi * h1[i][0], (1.0 - psi) * c1[i]) for i in range(2)]  # d_k = h_k − ψ h_{k+1}
+    lag_sum = np.array([N, N * (N - 1) / 2, (N - 1) * N * (2 * N - 1) / 6])  # Σ_{k<N} k^p
+    S = 2 if coloured else 1
+    G = np.zeros((3, 1 + 3 * S))
+    clean = np.zeros((2, 2))
+    for e, (i, j) in enumerate(((0, 0), (0, 1), (1, 1))):
+        dd = np.array(linear_product(d[i], d[j]))
+        clean[i, j] = clean[j, i] = G[e, 0] = dd @ lag_sum
+        G[e, 1::S] = -dd  # missing frames
+        if coloured:
+            G[e, 2::S] = np.array(linear_product(h[i], h[j])) - dd  # undifferenced rows
+    E = np.zeros((2, 2 + 4 if coloured else 2))
+    E[:, :2] = clean
+    if coloured:
+        for i in range(2):
+            E[i, 2::2] = psi * np.array(d[i])
+            E[i, 3::2] = psi * np.array(h1[i])
+    return G, E
 
 
 @lru_cache(maxsize=4096)

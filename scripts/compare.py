@@ -1,19 +1,40 @@
 #!/usr/bin/env python
-"""Compare a trained tuner with every baseline on the same held-out episodes of its env and back end.
+"""Compare a trained tuner with every baseline on the same held-out episodes of an env and back end.
 
     python scripts/compare.py --model runs/ppo_ufir_cmn_sim_s0 --episodes 500
+    python scripts/compare.py --model runs/ppo_ufir_cmn_sim_s0 --env-kwargs source=otb          # transfer: OTB replay
+    python scripts/compare.py --model RUN --env-kwargs source=otb_tracker "trackers=[SiamRPN++, CFNet, STRUCK, MDNet]"
 
-Methods (agents.baselines, agents.adaptive): rule, rule_est_sigma, rule_true_sigma (sim only), oracle,
-global, amortised, adaptive, the trained model (named by its algorithm, e.g. ppo) and its best-on-validation
-checkpoint (<algo>_best). Test episodes are the test split (noise seeds 10⁹ + i, agents/splits.py) for every
-method (common random numbers); global and amortised are fitted on train-split episodes.
+The env: the run's own (config.yml's env id and env_kwargs) unless --env / --env-kwargs KEY=VALUE ... change it
+(any envs.config.EnvConfig field, YAML values, KEY:VALUE also accepted, split at the first = or :; checked before
+any work). The model must fit the evaluation env: equal observation and action spaces and actions that set the
+same parameters of the same back end (agents.safe_load.check_env_match); everything else may differ (transfer).
+
+Episodes (agents/splits.py): --split (default test) and --seed choose them, the same seed always the same
+episodes. sim / video: --episodes N noise seeds of the split (seed 0: episodes 0 .. N-1, today's fixed test set;
+another seed: N others drawn with it). OTB sources enumerate instead (no --episodes): "otb" every sequence of the
+split × --seeds-per-sequence noise seeds, "otb_tracker" every sequence × every tracker of the env's set (tracker
+output has no noise seed). --seed also seeds the baselines' training episodes, Optuna, the regressor and the
+bootstrap.
+
+Methods (agents.baselines, agents.adaptive): raw (the measurements themselves, no filter; a frame without a
+measurement is scored as a missing estimate: a failure for success AUC / precision, left out of the RMSE), rule,
+rule_est_sigma, rule_true_sigma (sim only), oracle (per-episode search maximising the env's reward with the
+truth), oracle_auc (maximising success AUC; oracle_rmse, minimising RMSE, when the reward is not RMSE), global,
+amortised, adaptive, the trained model (named by its algorithm, e.g. ppo) and its best-on-validation checkpoint
+(<algo>_best). All methods see the same episodes (common random numbers); global and amortised are fitted on
+train-split episodes of the evaluation env.
 
 Writes to --out (default RUN_DIR/compare; a new or empty folder, nothing is overwritten): results.csv (one
-row per method × episode), summary.md (tables with 95 % bootstrap CIs), gain_boxplot.png, otb_curves.png,
+row per method × episode: method, episode, sequence, tracker, rmse, success_auc, precision20, …; sequence and
+tracker empty for sim), summary.md (tables with 95 % bootstrap CIs that resample sequences — an OTB sequence or
+a synthetic video with all its episodes — and simulated episodes, each its own cluster; sources other than sim
+add success AUC / precision against raw and rule, OTB sources per-attribute deltas and, for otb_tracker, rows
+per tracker), gain_boxplot.png, otb_curves.png,
 trajectory.png. The run's models are loaded without unpickling anything and checked against its config.yml
-(agents.safe_load) before any baseline is fitted; an old run whose statistics are only in vecnormalize.pkl is
-refused unless --trust-pickle is given (pickles can run code: only for runs you trust). Bad arguments or run
-files: one line naming them, exit status 2.
+(agents.safe_load) and against the evaluation env before any baseline is fitted; an old run whose statistics
+are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can run code: only for runs you
+trust). Bad arguments or run files: one line naming them, exit status 2.
 """
 
 from __future__ import annotations
@@ -23,31 +44,51 @@ import shlex
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
+import gymnasium as gym  # noqa: E402
 import torch  # noqa: E402
 
-from agents.baselines import GridSearch  # noqa: E402
-from agents.evaluate import BaselineSettings, evaluate, fit_baselines, standard_policies  # noqa: E402
+from agents.baselines import GridSearch, OraclePolicy  # noqa: E402
+from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, key_values, nonnegative_int,  # noqa: E402
+                        out_dir, positive_int, tracker_set)
+from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,  # noqa: E402
+                             standard_policies)
 from agents.plots import gain_boxplot, otb_curves, trajectories  # noqa: E402
 from agents.report import by_method, summary_markdown, write_results_csv  # noqa: E402
-from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, nonnegative_int, out_dir,  # noqa: E402
-                        positive_int)
 from agents.run_files import RunError, write_text_atomic  # noqa: E402
-from agents.runs import SB3Policy, check_free, load_config, make_env  # noqa: E402
-from agents.splits import SPLIT_SIZE, eval_seeds  # noqa: E402
+from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env  # noqa: E402
+from agents.safe_load import check_env_match  # noqa: E402
+from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec  # noqa: E402
+from envs.config import EnvConfig  # noqa: E402
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"
 MIN_TRAIN_EPISODES = 11  # AmortisedPolicy's MLP holds out ceil(10 %) for early stopping and needs >= 2 of them
+DEFAULT_EPISODES = 500  # sim / video
+DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episodes
 
 
 def build_parser() -> ArgumentParser:
     p = ArgumentParser(prog="compare.py", description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False)
     p.add_argument("--model", type=existing_dir, required=True, metavar="RUN_DIR", help="a scripts/train.py run directory")
-    p.add_argument("--episodes", type=int_range(1, SPLIT_SIZE), default=500, help="test episodes (test split episodes 0 .. N-1)")
+    p.add_argument("--env", default=None, metavar="ID", help=f"env id (default: the run's; compare.py scores {ONE_STEP_ENV})")
+    p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
+                   help="override the run's env arguments (envs.config.EnvConfig fields, YAML values; KEY:VALUE also "
+                        "accepted), e.g. source=otb track_length=100; the split is --split")
+    p.add_argument("--trackers", type=tracker_set, default=None, metavar="SET",
+                   help="source otb_tracker: score these trackers' output instead of the run's: 'test' (the held-out "
+                        "trackers of envs.otb.TRACKER_SPLIT), 'train' or comma-separated names")
+    p.add_argument("--split", default="test", choices=SPLITS, help="which split's episodes (and OTB sequences) are scored")
+    p.add_argument("--episodes", type=int_range(1, SPLIT_SIZE), default=None,
+                   help=f"sim / video: episodes scored (default {DEFAULT_EPISODES}); OTB sources enumerate theirs "
+                        "and take no count")
+    p.add_argument("--seeds-per-sequence", type=positive_int, default=None, metavar="K",
+                   help=f"source otb: noise seeds per sequence (default {DEFAULT_SEEDS_PER_SEQUENCE})")
     p.add_argument("--seed", type=nonnegative_int, default=0,
-                   help="seed of the baselines' training episodes, Optuna, the regressor and the bootstrap")
+                   help="which episodes are scored (0: episodes 0 .. N-1 of the split), and the seed of the baselines' "
+                        "training episodes, Optuna, the regressor and the bootstrap")
     p.add_argument("--out", type=out_dir, default=None, help="output folder, new or empty (default RUN_DIR/compare)")
     p.add_argument("--train-episodes", type=int_range(MIN_TRAIN_EPISODES), default=1000,
                    help="train episodes for the amortised regressor (>= 11: it holds out 10 %% for early stopping, "
@@ -60,14 +101,74 @@ def build_parser() -> ArgumentParser:
     return p
 
 
-def load_learned(args: argparse.Namespace, algo: str) -> list[SB3Policy]:
-    """The run's final model and, if the run has one, its best-on-validation model (``<algo>_best``)."""
+def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """The env id and kwargs to evaluate in: the run's, changed by --env / --env-kwargs (checked here)."""
+    env_id = args.env or cfg["env_id"]
+    if env_id != ONE_STEP_ENV:
+        flag = "--env" if args.env else "--model"
+        parser.error(f"{flag}: {args.model} would be scored on {env_id}; compare.py scores one-step tuners of {ONE_STEP_ENV}")
+    try:
+        overrides = key_values("--env-kwargs", args.env_kwargs)
+    except ValueError as err:
+        parser.error(str(err))
+    if "split" in overrides:
+        parser.error("--env-kwargs split: the split is chosen with --split")
+    if args.trackers is not None:
+        if "trackers" in overrides:
+            parser.error("--trackers: given twice (also in --env-kwargs trackers=...)")
+        overrides["trackers"] = list(args.trackers)
+    env_kwargs = {**cfg["env_kwargs"], **overrides}
+    try:
+        EnvConfig.from_kwargs(**{**env_kwargs, "split": args.split})
+    except (TypeError, ValueError) as err:
+        parser.error(f"{env_flags(args)}: {err}" if overrides else f"{args.model}/config.yml: env_kwargs: {err}")
+    return env_id, env_kwargs
+
+
+def env_flags(args: argparse.Namespace) -> str:
+    """The flags that changed the run's env, for error messages ("" if none)."""
+    return "/".join(flag for flag, given in (("--env-kwargs", args.env_kwargs), ("--trackers", args.trackers)) if given)
+
+
+def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env) -> list[EpisodeSpec]:
+    """The episodes to score (agents.evaluate.evaluation_episodes), after checking the flags that choose them."""
+    source = env.unwrapped.config.source
+    k = args.seeds_per_sequence
+    if source in OTB_SOURCES and args.episodes is not None:
+        parser.error(f"--episodes: source {source!r} enumerates its episodes (every {args.split}-split sequence × "
+                     f"{'tracker' if source == 'otb_tracker' else '--seeds-per-sequence noise seeds'}); leave it out")
+    if source != "otb" and k is not None:
+        parser.error(f"--seeds-per-sequence applies to source 'otb' only (this evaluation's source is {source!r}: "
+                     f"{'one episode per sequence × tracker' if source == 'otb_tracker' else 'use --episodes'})")
+    n = (args.episodes or DEFAULT_EPISODES) if source not in OTB_SOURCES else None
+    k = (k or DEFAULT_SEEDS_PER_SEQUENCE) if source == "otb" else None
+    return evaluation_episodes(env, args.split, episodes=n, seeds_per_sequence=k, seed=args.seed)
+
+
+def load_learned(args: argparse.Namespace, cfg: dict[str, Any], env: gym.Env) -> list[SB3Policy]:
+    """The run's final model and, if the run has one, its best-on-validation model (``<algo>_best``), each
+    checked against the evaluation env ``env``."""
     learned = [SB3Policy.load(args.model, "final", trust_pickle=args.trust_pickle)]
     if (args.model / "best_model.zip").exists():
         best = SB3Policy.load(args.model, "best", trust_pickle=args.trust_pickle)
-        best.name = f"{algo}_best"
+        best.name = f"{cfg['algo']}_best"
         learned.append(best)
+    for policy, prefix in zip(learned, ("", "best_")):
+        check_env_match(args.model / f"{prefix}model.zip", policy.model, cfg, env)
     return learned
+
+
+def describe_episodes(args: argparse.Namespace, source: str, episodes: list[EpisodeSpec]) -> str:
+    """The settings line of the scored episodes."""
+    n = len(episodes)
+    if source in OTB_SOURCES:
+        sequences = len({e.sequence for e in episodes})
+        per = (f"× {len({e.tracker for e in episodes})} trackers (one episode per sequence with the tracker's output)"
+               if source == "otb_tracker" else f"× {n // sequences} noise seeds")
+        return f"{n} = {sequences} {args.split}-split sequences {per}; noise seeds chosen with --seed {args.seed}"
+    if args.split == "test" and args.seed == 0:
+        return f"{n} (test split: noise seeds 10⁹ + i, i < {n})"
+    return f"{n} ({args.split} split, chosen with --seed {args.seed}: agents.splits.split_seeds)"
 
 
 def main(argv: list[str] | None = None) -> Path:
@@ -81,41 +182,59 @@ def main(argv: list[str] | None = None) -> Path:
         cfg = load_config(args.model)
         if cfg["env_id"] != ONE_STEP_ENV:
             raise RunError(f"{args.model} was trained on {cfg['env_id']}; compare.py scores one-step tuners of {ONE_STEP_ENV}")
-        learned = load_learned(args, cfg["algo"])
+        env_id, env_kwargs = evaluation_env(parser, args, cfg)
+        try:
+            test_env, train_env = make_env(env_id, env_kwargs, split=args.split), make_env(env_id, env_kwargs, split="train")
+        except ENV_ERRORS as err:
+            raise RunError(f"{env_flags(args) or '--model'}: env {env_id} {env_kwargs} cannot be built "
+                           f"({' '.join(str(err).split())})") from None
+        episodes = episode_plan(parser, args, test_env)
+        learned = load_learned(args, cfg, test_env)
         out.mkdir(parents=True, exist_ok=True)
     except (RunError, OSError) as err:
         parser.error(str(err))
-    env_id, env_kwargs, algo = cfg["env_id"], cfg["env_kwargs"], cfg["algo"]
-    print(f"seed: {args.seed}\n{algo} from {args.model}: {env_id} {env_kwargs}, {args.episodes} test episodes")
+    config = test_env.unwrapped.config
+    algo, source = cfg["algo"], config.source
+    print(f"seed: {args.seed}\n{algo} from {args.model}: {env_id} {env_kwargs}, {len(episodes)} {args.split} episodes")
     search = GridSearch(budget=args.oracle_budget)
     settings = BaselineSettings(train_episodes=args.train_episodes, global_episodes=min(300, args.train_episodes),
                                 global_trials=args.global_trials, seed=args.seed)
-    standard = standard_policies(env_kwargs["source"], search)
+    standard = standard_policies(source, search, config.reward)
+    oracle = next(p for p in standard if isinstance(p, OraclePolicy) and p.name == "oracle")
     start = time.perf_counter()
-    fitted = fit_baselines(make_env(env_id, env_kwargs, split="train"), standard[-1], settings, progress=True)
+    fitted = fit_baselines(train_env, oracle, settings, progress=True)
     print(f"fitted global and amortised on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
     policies = [*standard, *fitted, *learned]
     start = time.perf_counter()
-    result = evaluate(make_env(env_id, env_kwargs, split="test"), policies, eval_seeds("test", args.episodes), progress=True)
-    print(f"scored {len(policies) + 1} methods on {args.episodes} episodes in {time.perf_counter() - start:.0f} s")
+    result = evaluate(test_env, policies, episodes, progress=True)
+    print(f"scored {len(policies) + 2} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
     write_results_csv(out / "results.csv", result.rows)
-    title = f"{algo} vs baselines · {env_id} · backend {env_kwargs['backend']} · source {env_kwargs['source']}"
+    title = f"{algo} vs baselines · {env_id} · backend {config.backend} · source {source}"
     gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
     otb_curves(out / "otb_curves.png", result.success, result.precision, title)
     ex = result.example
     trajectories(out / "trajectory.png", ex["truth"], ex["y"], {k: v for k, v in ex["estimates"].items()
                  if k in ("rule", "oracle", "amortised", algo)}, f"{title}\ntest episode 0: " + ", ".join(
                      f"{k} {v:.3g}" for k, v in ex["meta"].items() if isinstance(v, float)))
+    changed = sorted(k for k, v in env_kwargs.items() if k not in cfg["env_kwargs"] or cfg["env_kwargs"][k] != v)
+    other = "oracle_auc: the same search maximising success AUC" if config.reward == "rmse" else \
+        "oracle_rmse: the same search minimising RMSE"
     settings_md = {"command": f"`{command}`",
                    "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})",
-                   "test episodes": f"{args.episodes} (test split: noise seeds 10⁹ + i, i < {args.episodes})",
-                   "baselines fitted on": f"{args.train_episodes} train-split episodes (seed {args.seed}); global: "
+                   "env": f"`{env_kwargs}`" + (f" (changed from the run's: {changed})" if changed else
+                                                " (the run's own)"),
+                   "test episodes": describe_episodes(args, source, episodes),
+                   "baselines fitted on": f"{args.train_episodes} train-split episodes of this env (seed {args.seed}); global: "
                                           f"{args.global_trials} TPE trials on {settings.global_episodes} of them",
                    "oracle": f"grid of <= {search.budget} actions, then {search.rounds} local refinements "
-                             f"({search.refine} points per dimension); the rules' actions are candidates"}
+                             f"({search.refine} points per dimension) maximising the env's reward ({config.reward}); "
+                             f"{other}; the rules' actions are candidates"}
+    attributes = ({name: test_env.unwrapped.source.dataset.sequence(name).attributes for name in
+                   {e.sequence for e in episodes}} if source in OTB_SOURCES else None)
     summary = summary_markdown(result.rows, result.truth_at_test, learned=[p.name for p in learned], title=title,
                                settings=settings_md, figures=["gain_boxplot.png", "otb_curves.png", "trajectory.png"],
-                               n_boot=args.bootstrap, seed=args.seed)
+                               n_boot=args.bootstrap, seed=args.seed,
+                               rmse_oracle="oracle" if config.reward == "rmse" else "oracle_rmse", attributes=attributes)
     write_text_atomic(out / "summary.md", summary)
     print(summary.split("## Paired")[0])
     print(f"wrote {out}")

@@ -53,7 +53,8 @@ import filters  # noqa: E402
 from agents.algos import ALGOS, algo_class  # noqa: E402
 from agents.callbacks import AtomicCheckpoint, EpisodeLog, SaveBest, restore_eval_state  # noqa: E402
 from agents.checkpoints import Checkpoint, newest_complete  # noqa: E402
-from agents.cli import ArgumentParser, HelpFormatter, existing_dir, nonnegative_int, out_dir, positive_int  # noqa: E402
+from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, key_values, nonnegative_int, out_dir,  # noqa: E402
+                        positive_int, tracker_set)
 from agents.hyperparams import Hyperparams, constructor_kwargs, load_hyperparams  # noqa: E402
 from agents.plots import learning_curve  # noqa: E402
 from agents.run_files import (PICKLED_REPLAY, REPLAY, STATS, RunError, atomic_write, load_normalizer,  # noqa: E402
@@ -62,6 +63,7 @@ from agents.runs import (CONFIG, ENV_ERRORS, RESUME_KEYS, RunLock, check_free, c
                          make_env, make_vec)
 from agents.safe_load import load_model, stamp  # noqa: E402
 from envs.config import SOURCES  # noqa: E402
+from envs.otb import TRACKER_SPLIT  # noqa: E402
 
 DEFAULT_ENV = "bboxtune/FilterTune-v0"
 RESUME_FLAGS = {"--resume", "--timesteps", "--trust-pickle"}  # the only flags a resume takes: the rest is config.yml's
@@ -93,8 +95,13 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--checkpoint-freq", type=positive_int, default=20_000, help="timesteps between checkpoints")
     p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY:VALUE",
                    help="override entries of agents/hyperparams/<algo>.yml (YAML values), e.g. n_steps:64 learning_rate:lin_1e-3")
-    p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY:VALUE",
-                   help="more env arguments (envs.config.EnvConfig fields, YAML values), e.g. track_length:200")
+    p.add_argument("--trackers", type=tracker_set, default=None, metavar="SET",
+                   help="source otb_tracker (or mix): the trackers whose output episodes replay, one drawn per episode: "
+                        "'train' or 'test' of the tracker split (envs.otb.TRACKER_SPLIT) or comma-separated names "
+                        "(default with those sources: 'train', unless --env-kwargs sets tracker or trackers)")
+    p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
+                   help="more env arguments (envs.config.EnvConfig fields, YAML values; KEY=VALUE or KEY:VALUE, split "
+                        "at the first = or :), e.g. track_length=200")
     return p
 
 
@@ -107,6 +114,12 @@ def parse_args(argv: list[str] | None = None, parser: ArgumentParser | None = No
     clash = sorted(set(args.env_kwargs) & {"backend", "source", "reward", "split"})
     if clash:
         p.error(f"--env-kwargs {clash}: use --backend/--source/--reward (the split is set per use)")
+    if args.trackers is not None and "trackers" in args.env_kwargs:
+        p.error("--trackers: given twice (also in --env-kwargs trackers=...)")
+    if args.trackers is not None:
+        args.env_kwargs["trackers"] = list(args.trackers)
+    elif draws_trackers(args.source, args.env_kwargs) and not {"tracker", "trackers"} & set(args.env_kwargs):
+        args.env_kwargs["trackers"] = list(TRACKER_SPLIT["train"])  # never the held-out trackers by default
     given = sorted({t.split("=", 1)[0] for t in tokens if t.startswith("--")} - RESUME_FLAGS)
     if args.resume is not None and given:
         p.error(f"{' '.join(given)} cannot be given with --resume: the run's settings come from {args.resume / CONFIG} "
@@ -116,20 +129,20 @@ def parse_args(argv: list[str] | None = None, parser: ArgumentParser | None = No
     return args
 
 
+def draws_trackers(source: str, env_kwargs: dict[str, Any]) -> bool:
+    """Whether episodes replay tracker output: source otb_tracker, or mix with a tracker weight (mix_weights[2])
+    that is not 0 (a malformed value is left to EnvConfig's check)."""
+    weights = env_kwargs.get("mix_weights", (1.0, 1.0, 1.0))
+    no_trackers = isinstance(weights, (list, tuple)) and len(weights) == 3 and weights[2] == 0
+    return source == "otb_tracker" or (source == "mix" and not no_trackers)
+
+
 def _key_values(p: ArgumentParser, flag: str, items: list[str]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for item in items:
-        key, sep, value = item.partition(":")
-        if not sep or not key:
-            p.error(f"{flag} {item!r}: expected KEY:VALUE")
-        if key in out:
-            p.error(f"{flag}: {key} given twice")
-        try:
-            out[key] = yaml.safe_load(value)
-        except yaml.YAMLError as err:
-            why = getattr(err, "problem", None) or " ".join(str(err).split())
-            p.error(f"{flag} {item!r}: the value is not valid YAML ({why})")
-    return out
+    """``--env-kwargs`` items ``KEY=VALUE`` or ``KEY:VALUE`` (as compare.py), ``--hyperparams`` ``KEY:VALUE``."""
+    try:
+        return key_values(flag, items, separators="=:" if flag == "--env-kwargs" else ":")
+    except ValueError as err:
+        p.error(str(err))
 
 
 def new_config(args: argparse.Namespace) -> dict[str, Any]:
@@ -258,7 +271,7 @@ def prepare_new(args: argparse.Namespace) -> tuple[dict[str, Any], Hyperparams, 
     check_free(run_dir)
     hp = hyperparams_of(cfg, "--hyperparams")
     check_tensorboard(cfg)
-    venv = validated_envs(cfg, hp, "--env / --env-kwargs / --backend / --source / --reward")
+    venv = validated_envs(cfg, hp, "--env / --env-kwargs / --backend / --source / --reward / --trackers")
     check_new_model(cfg, hp, venv, f"--hyperparams / agents/hyperparams/{cfg['algo']}.yml")
     venv.close()
     return cfg, hp, run_dir, claim_run_dir(run_dir)

@@ -32,7 +32,8 @@ from tqdm import tqdm  # noqa: E402
 from video_common import bootstrap_ci, csv_text, folder_in_use, json_text, publish_folder  # noqa: E402
 
 import filters  # noqa: E402
-from agents.cli import ArgumentParser, argument_errors, int_range, nonnegative_int, out_dir  # noqa: E402
+from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int,  # noqa: E402
+                        out_dir)
 from envs.config import TRACK_LENGTH_MAX, EnvConfig  # noqa: E402
 from envs.scoring import run_positions, score_estimates  # noqa: E402
 from envs.video.detectors import DETECTORS  # noqa: E402
@@ -45,22 +46,24 @@ MAX_CANDIDATES = 10_000  # grid points per back end (each one filters every trai
 
 
 def build_parser() -> ArgumentParser:
-    p = ArgumentParser(prog="video_table.py", description=__doc__.split("\n\n")[0],
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter, allow_abbrev=False)
+    p = ArgumentParser(prog="video_table.py", description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False)
     p.add_argument("--n-test", type=int_range(2, MAX_VIDEOS), default=100, help="test videos (scored)")
     p.add_argument("--n-train", type=int_range(1, MAX_VIDEOS), default=16,
                    help="training videos (grid search of the tuned filter)")
     p.add_argument("--frames", type=int_range(8, TRACK_LENGTH_MAX), default=200, help="frames per video (30 fps)")
-    p.add_argument("--detectors", nargs="+", default=list(DETECTORS), choices=DETECTORS)
-    p.add_argument("--backends", nargs="+", default=None, choices=filters.NAMES,
-                   help="filter back ends (default: ufir_cmn kf; with --tuned: the tuner's)")
+    p.add_argument("--detectors", nargs="+", default=None, choices=DETECTORS, metavar="NAME",
+                   help=f"detectors, of {', '.join(DETECTORS)} (default: all)")
+    p.add_argument("--backends", nargs="+", default=None, choices=filters.NAMES, metavar="NAME",
+                   help=f"filter back ends, of {', '.join(filters.NAMES)} (default: ufir_cmn kf; with --tuned: "
+                        "the tuner's)")
     p.add_argument("--grid", type=int_range(2, MAX_CANDIDATES), default=9,
                    help=f"grid points per tuned parameter (at most {MAX_CANDIDATES} grid points in all)")
     p.add_argument("--tuned", default=None, help="train.py run directory or tuned.json (replaces the grid search; "
                                                  "its back end replaces --backends)")
     p.add_argument("--trust-pickle", action="store_true",
                    help="--tuned RUN_DIR: accept an old run's pickled vecnormalize.pkl (pickles can run code)")
-    p.add_argument("--cache", type=out_dir, default=None, help="folder of the detection cache (default: memory only)")
+    p.add_argument("--cache", type=out_dir, default=None,
+                   help="folder of the detection cache, created if missing (default: memory only)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the bootstrap intervals")
     p.add_argument("--out", type=out_dir, default="runs/video_table", help="output folder (absent or empty)")
     return p
@@ -75,6 +78,9 @@ def parse_args(argv: list[str] | None = None) -> tuple[argparse.Namespace, Tuner
     busy = folder_in_use(args.out)
     if busy:
         p.error(f"--out {busy}; choose another folder")
+    out = args.out.resolve()
+    if args.cache is not None and (args.cache.resolve() == out or out in args.cache.resolve().parents):
+        p.error(f"--cache {args.cache} lies in --out {args.out}, which must stay empty until the table is written")
     tuner = None
     if args.tuned is not None:
         try:
@@ -87,6 +93,7 @@ def parse_args(argv: list[str] | None = None) -> tuple[argparse.Namespace, Tuner
     elif args.trust_pickle:
         p.error("--trust-pickle applies to --tuned RUN_DIR only")
     args.backends = args.backends or ["ufir_cmn", "kf"]
+    args.detectors = args.detectors or list(DETECTORS)
     if len(set(args.backends)) < len(args.backends) or len(set(args.detectors)) < len(args.detectors):
         p.error("--backends and --detectors must not repeat a name")
     for backend in args.backends if tuner is None else ():

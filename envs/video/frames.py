@@ -84,13 +84,18 @@ def image_folder(folder: str | os.PathLike, *, first_frame: int = 1, n_frames: i
                  fps: float = 30.0) -> ImageFolder:
     """Images numbered ``first_frame`` … ``first_frame + n_frames − 1`` (all from ``first_frame`` if
     ``n_frames`` is None) in ``folder`` or in its ``img/`` sub-folder; file stems are the numbers
-    (``0001.jpg``). A number missing in that range raises ValueError naming it."""
+    (``0001.jpg``). A number missing in that range, or two files of one number (``1.jpg`` and ``0001.png``),
+    raises ValueError naming them."""
     root = Path(folder)
     images = root / "img" if (root / "img").is_dir() else root
     if not images.is_dir():
         raise ValueError(f"{folder}: not a folder of images")
-    numbered = {int(p.stem): p for p in images.iterdir()
-                if p.suffix.lower() in IMAGE_EXTENSIONS and re.fullmatch(r"[0-9]+", p.stem) and p.is_file()}
+    numbered: dict[int, Path] = {}
+    for path in sorted(images.iterdir()):
+        if path.suffix.lower() in IMAGE_EXTENSIONS and re.fullmatch(r"[0-9]+", path.stem) and path.is_file():
+            other = numbered.setdefault(int(path.stem), path)
+            if other is not path:
+                raise ValueError(f"{images}: {other.name} and {path.name} are both image {int(path.stem)}; keep one")
     if not numbered:
         raise ValueError(f"{images}: no numbered images ({', '.join(IMAGE_EXTENSIONS)})")
     if first_frame < 1:

@@ -30,6 +30,21 @@ def test_oracle_never_worse_than_rule_or_informed_rule(env: gym.Env) -> None:
         assert r[0] >= 0.0 and r[0] >= r[1] and r[0] >= r[2]
 
 
+def test_oracle_of_another_objective_is_best_on_that_objective(env: gym.Env) -> None:
+    search, anchors = GridSearch(budget=30, rounds=1), [RulePolicy(), RuleEstimatedSigmaPolicy()]
+    by_reward, by_auc = OraclePolicy(search, anchors), OraclePolicy(search, anchors, objective="success_auc", name="a")
+    by_rmse = OraclePolicy(search, anchors, objective="rmse", name="r")
+    for seed in SEEDS:
+        obs, _ = env.reset(options={"noise_seed": int(seed)})
+        actions = np.stack([by_reward.act(obs, env), by_auc.act(obs, env), by_rmse.act(obs, env),
+                            *(p.act(obs, env) for p in anchors)])
+        s = env.unwrapped.score(actions)
+        assert s["success_auc"][1] >= max(s["success_auc"][3:])  # the anchors are candidates
+        assert s["rmse"][2] == s["rmse"][0] <= min(s["rmse"][3:])  # the env's reward is the RMSE log-ratio
+    with pytest.raises(ValueError, match="objective"):
+        OraclePolicy(search, objective="iou")
+
+
 def test_rule_true_sigma_uses_the_scenario(env: gym.Env) -> None:
     obs, _ = env.reset(options={"noise_seed": 5})
     meta = {**env.unwrapped.episode.meta, **env.unwrapped.episode.scenario}  # tau; the true ψ, σ

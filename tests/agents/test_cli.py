@@ -170,3 +170,18 @@ def test_help_formatter_appends_real_defaults_only():
     parser.add_argument("--out", default=None, help="folder")
     text = parser.format_help()
     assert "    kept   as written" in text and "count (default: 3)" in text and "folder\n" in text
+
+
+def test_key_values_split_at_the_first_separator_and_read_yaml():
+    got = cli.key_values("--env-kwargs", ["track_length=100", "otb_root=/a:b", "tune:[psi, horizon]", "psi_range=[0, 0.5]"])
+    assert got == {"track_length": 100, "otb_root": "/a:b", "tune": ["psi", "horizon"], "psi_range": [0, 0.5]}
+    assert cli.key_values("--hyperparams", ["policy_kwargs:dict(a=1)"], separators=":") == {"policy_kwargs": "dict(a=1)"}
+
+
+@pytest.mark.parametrize(("items", "message"), [(["track_length"], "expected KEY=VALUE or KEY:VALUE"),
+                                                (["=3"], "expected"), (["a=1", "a:2"], "a given twice"),
+                                                (["a=[1"], "not valid YAML")])
+def test_key_values_errors_name_the_flag(items, message):
+    with pytest.raises(ValueError, match=message) as err:
+        cli.key_values("--env-kwargs", items)
+    assert str(err.value).startswith("--env-kwargs")

@@ -25,7 +25,7 @@ from agents.hyperparams import constructor_kwargs, load_hyperparams
 from agents.run_files import (RunError, load_normalizer, load_replay_buffer, load_stats, save_replay_buffer,
                               save_stats)
 from agents.runs import make_vec
-from agents.safe_load import load_model, stamp
+from agents.safe_load import check_env_match, load_model, stamp
 
 from .conftest import ENV_ID, SHORT
 
@@ -244,3 +244,25 @@ def test_truncated_model_zip_is_named(tmp_path: Path) -> None:
     path.write_bytes(path.read_bytes()[:5000])
     with pytest.raises(RunError, match=rf"{path}: not a readable zip archive"):
         load_model(path, config("ppo"), venv_of(config("ppo")))
+
+
+def test_a_model_is_checked_against_the_env_it_is_to_act_in(tmp_path: Path) -> None:
+    import gymnasium as gym
+
+    cfg = config("ppo")
+    model = load_model(saved_model(tmp_path, cfg), cfg, venv_of(cfg))
+    path = tmp_path / "model.zip"
+    check_env_match(path, model, cfg, gym.make(ENV_ID, backend="ufir_cmn", source="sim", track_length=60))  # transfer: ok
+    with pytest.raises(RunError, match=r"action_space float32\[2\] of the model differs from the evaluation env's "
+                                       r"float32\[3\]"):
+        check_env_match(path, model, cfg, gym.make(ENV_ID, backend="kf_cmn", **SHORT))
+    with pytest.raises(RunError, match=r"action_space float32\[2\] sets \['psi', 'horizon'\] of back end ufir_cmn .* "
+                                       r"float32\[2\] sets \['sigma_w', 'sigma_v'\] of back end kf"):
+        check_env_match(path, model, cfg, gym.make(ENV_ID, backend="kf", **SHORT))
+    with pytest.raises(RunError, match=r"sigma_decades 1\.5\) in its run, but .*sigma_decades 2\)"):
+        check_env_match(path, model, {**cfg, "env_kwargs": {**cfg["env_kwargs"], "backend": "oufir"}},
+                        gym.make(ENV_ID, backend="oufir", sigma_decades=2.0, **SHORT))
+    model.observation_space = gym.spaces.Box(-1.0, 1.0, (5,), np.float32)  # a model of another feature set
+    with pytest.raises(RunError, match=r"observation_space float32\[5\] of the model differs from the evaluation "
+                                       r"env's float32\[[0-9]+\]"):
+        check_env_match(path, model, cfg, gym.make(ENV_ID, **SHORT))

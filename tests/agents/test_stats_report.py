@@ -6,9 +6,10 @@ import csv
 from pathlib import Path
 
 import numpy as np
+import pytest
 
-from agents.report import FIRST_COLUMNS, by_method, summary_markdown, write_results_csv
-from agents.stats import STATS, bootstrap_indices, ci, iqm, win_rate
+from agents.report import FIRST_COLUMNS, by_method, clusters, resampling_note, summary_markdown, write_results_csv
+from agents.stats import STATS, bootstrap_indices, ci, cluster_bootstrap_indices, iqm, win_rate
 
 
 def test_iqm_ignores_the_tails() -> None:
@@ -58,3 +59,78 @@ def test_summary_tables() -> None:
     gap = by_method(rows, "log_ratio")
     closed = gap["ppo"].mean() / gap["oracle"].mean()
     assert f"+{closed:.2f} [" in text and "ψ ∈ [0.6, 1.0)" in text and "![a.png](a.png)" in text
+
+
+def test_every_episode_its_own_cluster_is_the_episode_bootstrap() -> None:
+    idx = cluster_bootstrap_indices([f"episode {e}" for e in range(30)], 200, seed=5)
+    np.testing.assert_array_equal(idx, bootstrap_indices(30, 200, seed=5))
+
+
+def test_clusters_are_resampled_whole() -> None:
+    labels = ["a"] * 3 + ["b"] * 1 + ["c"] * 2  # unequal sizes: a list of resamples
+    idx = cluster_bootstrap_indices(labels, 100, seed=0)
+    assert isinstance(idx, list) and len(idx) == 100
+    members = {"a": {0, 1, 2}, "b": {3}, "c": {4, 5}}
+    for sample in idx:
+        counts = {k: sum(int(i in m) for i in sample) for k, m in members.items()}
+        assert sum(counts[k] // len(members[k]) for k in members) == 3  # 3 clusters drawn, each whole
+        assert all(counts[k] % len(members[k]) == 0 for k in members)
+
+
+def test_cluster_ci_is_wider_than_the_episode_ci_when_episodes_repeat_a_sequence() -> None:
+    """8 sequences × 25 episodes that mostly share their sequence's value: 200 episodes, 8 independent units."""
+    rng = np.random.default_rng(0)
+    labels = [f"s{c}" for c in range(8) for _ in range(25)]
+    x = np.repeat(rng.normal(0.0, 1.0, 8), 25) + rng.normal(0.0, 0.05, 200)
+    _, lo_e, hi_e = ci(x, STATS["mean"], bootstrap_indices(200, 1000, seed=1))
+    est, lo_c, hi_c = ci(x, STATS["mean"], cluster_bootstrap_indices(labels, 1000, seed=1))
+    assert lo_c < est < hi_c and hi_c - lo_c > 3 * (hi_e - lo_e)  # ≈ √25 = 5 times wider
+
+
+def test_ragged_resamples_give_the_same_interval_as_the_equal_size_path() -> None:
+    x = np.random.default_rng(2).normal(size=12)
+    labels = [e // 3 for e in range(12)]  # 4 clusters of 3: an array
+    idx = cluster_bootstrap_indices(labels, 300, seed=3)
+    assert isinstance(idx, np.ndarray)
+    assert ci(x, STATS["iqm"], idx) == pytest.approx(ci(x, STATS["iqm"], list(idx)))
+
+
+def _otb_rows() -> list[dict]:
+    rng = np.random.default_rng(1)
+    rows = []
+    for e, (seq, tracker) in enumerate((s, t) for s in ("Basketball", "Deer", "Vase") for t in ("A", "B")):
+        auc = {"raw": 0.6, "rule": 0.55, "ppo": 0.6 + (0.02 if seq == "Deer" else 0.0), "oracle": 0.65}
+        for m, a in auc.items():
+            rows.append({"method": m, "episode": e, "sequence": seq, "tracker": tracker, "source": "otb_tracker",
+                         "rmse": float(rng.uniform(2, 4)), "rule_rmse": 3.0, "log_ratio": 0.1, "success_auc": a,
+                         "precision20": a + 0.2})
+    return rows
+
+
+def test_otb_summary_names_clusters_attributes_and_trackers() -> None:
+    rows = _otb_rows()
+    attributes = {"Basketball": frozenset({"OCC"}), "Deer": frozenset({"MB", "FM"}), "Vase": frozenset({"SV"})}
+    text = summary_markdown(rows, {}, learned=["ppo"], title="T", settings={}, figures=[], n_boot=100,
+                            attributes=attributes)
+    assert "resamples of sequences (3 clusters; every drawn sequence brings all its episodes, 6 in all)" in text
+    assert "| ppo | 0.6067 [" in text and "+0.0067 [" in text  # AUC and Δ vs raw: one sequence of three gains 0.02
+    assert "MB (n=1)" in text and "OCC (n=1)" in text and "IV (n=0)" in text
+    mb = [line for line in text.splitlines() if line.startswith("| ppo |") and "+0.0200" in line]
+    assert mb, "the per-attribute Δ of ppo on MB (Deer only) is +0.02"
+    assert "| A | raw | 0.6000 | 0.8000 | +0.0000 [+0.0000, +0.0000]" in text and "| B | ppo |" in text
+
+
+def test_results_csv_is_written_atomically_with_the_key_columns_first(tmp_path: Path) -> None:
+    write_results_csv(tmp_path / "r.csv", _otb_rows())
+    assert [p.name for p in tmp_path.iterdir()] == ["r.csv"]
+    with open(tmp_path / "r.csv") as fh:
+        header = next(csv.reader(fh))
+    assert header[:7] == ["method", "episode", "sequence", "tracker", "rmse", "success_auc", "precision20"]
+
+
+def test_resampling_note_names_the_unit_and_the_clusters() -> None:
+    assert "of episodes (3 clusters: every episode its own)" in resampling_note(["episode 0", "episode 1", "episode 2"], 9)
+    mixed = resampling_note(["sequence A", "sequence A", "episode 2", "sequence B"], 9)
+    assert "3 clusters: 2 sequences, each with all its episodes, and 1 episodes without a sequence" in mixed
+    assert clusters([{"method": "rule", "episode": 1, "sequence": ""}, {"method": "rule", "episode": 0, "sequence": "A"},
+                     {"method": "raw", "episode": 0, "sequence": "A"}]) == ["sequence A", "episode 1"]

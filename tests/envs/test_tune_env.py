@@ -17,7 +17,7 @@ SHORT = {"track_length": 120}
 
 
 def _make(env_id: str, backend: str, source: str, **kw) -> gym.Env:
-    extra = {"otb_root": OTB_ROOT} if source != "sim" else dict(SHORT)
+    extra = {"otb_root": OTB_ROOT} if source in ("otb", "otb_tracker") else {"otb_root": OTB_ROOT, **SHORT} if source == "mix" else dict(SHORT)
     return gym.make(env_id, backend=backend, source=source, **extra, **kw)
 
 
@@ -342,18 +342,20 @@ def _derived(scenario: dict, tau: float) -> list[float]:
 
 
 @pytest.mark.parametrize("source", ["sim", pytest.param("otb", marks=needs_otb),
-                                    pytest.param("otb_tracker", marks=needs_otb), "video"])
+                                    pytest.param("otb_tracker", marks=needs_otb), "video", pytest.param("mix", marks=needs_otb)])
 @pytest.mark.parametrize("env_id", envs.ENV_IDS)
 def test_truth_only_after_the_decision(env_id: str, source: str) -> None:
     """Reset's info and the observations never hold a true scenario value (ψ, σ_w, σ_ξ, the relative CMN
     level) or anything derived from it; the step after the decision does — FilterTune-v0's one step,
     FilterRetune-v0's last one only."""
     kwargs = VIDEO if source == "video" else {"source": source, "otb_root": OTB_ROOT} if source != "sim" else dict(SHORT)
+    if source == "mix":
+        kwargs.update(SHORT, mix_weights=(1.0, 1.0, 2.0))
     env = gym.make(env_id, backend="kf_cmn", window=20, **kwargs)
-    for noise_seed in range(3):
+    for noise_seed in range(4 if source == "mix" else 3):  # mix: seeds 0-3 draw each part
         obs, info = env.reset(options={"noise_seed": noise_seed})
         ep = env.unwrapped.episode
-        assert bool(ep.scenario) == (source in ("sim", "otb"))  # otb_tracker and video have no synthetic noise
+        assert bool(ep.scenario) == (ep.meta.get("source", source) in ("sim", "otb"))  # otb_tracker, video: no synthetic noise
         secret = _derived(ep.scenario, ep.tau)
         assert not TRUTH_KEYS & set(info["track"]) and set(info) == {"track"}
         shown = [obs]

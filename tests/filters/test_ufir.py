@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 import filters
 from filters.horizon import rule_horizon
+from filters.lag_moments import lag_moments, lag_moments_real, lag_polynomial
 from filters.ufir import UFIR, back_projected_rows, ramp_gain, ufir_iterative
 
 TAU = 0.05
@@ -173,3 +174,49 @@ def test_iterative_reference_on_the_full_box_model_equals_fast() -> None:
     y = np.stack([track(45, seed=10 + j) for j in range(4)], axis=1)
     y[[4, 20, 21]] = np.nan  # whole boxes missing
     assert_close(filters.make("ufir", model, horizon=9).run(y), ufir_iterative(y, model.F, model.H, 9))
+
+
+@pytest.mark.parametrize("N", [1, 2, 7, 40])
+def test_lag_moments_equal_direct_window_sums(N: int) -> None:
+    rng = np.random.default_rng(N)
+    s = np.stack([rng.normal(300.0, 5.0, (3, 30)), (rng.random((3, 30)) < 0.3).astype(float)])  # (2, 3, 30)
+    k = np.arange(N)
+    window = np.arange(30)[:, None] - k  # frames n − k, (T, N)
+    taps = np.where(window >= 0, s[..., np.maximum(window, 0)], 0.0)  # (2, 3, T, N)
+    direct = np.stack([taps @ k.astype(float) ** p for p in range(3)])
+    np.testing.assert_allclose(lag_moments_real(s[0], N), direct[:2, 0], rtol=1e-12, atol=1e-9)
+    np.testing.assert_array_equal(lag_moments(s[1], N, 3), direct[:, 1])  # 0/1 signals: exact integers
+
+
+def test_lag_moments_of_a_long_track_keep_the_precision_of_one_window() -> None:
+    rng = np.random.default_rng(5)
+    T, N = 200_000, 60
+    s = rng.normal(1e4, 5.0, T)
+    got = lag_moments_real(s, N)[:, -5:]
+    whole = [N, N * (N - 1) / 2, (N - 1) * N * (2 * N - 1) / 6]  # Σ_{k<N} k^p
+    np.testing.assert_array_equal(lag_moments(np.ones(T), N, 3)[:, -1], whole)  # exact after 200,000 frames
+    k = np.arange(N, dtype=float)
+    direct = [[s[n - N + 1: n + 1][::-1] @ k**p for n in range(T - 5, T)] for p in range(2)]
+    np.testing.assert_allclose(got, direct, rtol=1e-12)
+
+
+def test_lag_polynomial_is_the_constant_velocity_back_projection() -> None:
+    c0, c1 = lag_polynomial(AXIS.F, AXIS.H)
+    rows = back_projected_rows(AXIS.F, AXIS.H, 12)[::-1]  # H F^{−k}, k = 0 … 11
+    np.testing.assert_allclose(c0 + np.arange(12)[:, None] * c1, rows, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="constant-velocity"):
+        lag_polynomial(np.array([[1.0, 0.1], [0.0, 0.9]]), AXIS.H)
+
+
+@pytest.mark.parametrize("psi", [0.0, 0.6])
+def test_windows_with_gaps_late_in_a_long_track_equal_the_iterative_reference(psi: float) -> None:
+    """The NaN windows are corrections of the clean kernel by lag moments over the whole track: check the last
+    windows of a long track (values ~1e4) against Algorithm 2 run on their frames only."""
+    rng = np.random.default_rng(8)
+    T, N = 40_000, 25
+    y = 1e4 + track(T, seed=8)
+    y[rng.random(T) < 0.05] = np.nan
+    fast = filters.make("ufir_cmn", MODEL1, psi=psi, horizon=N).run(y[:, None])
+    tail = y[-200:]
+    ref = ufir_iterative(tail, AXIS.F, AXIS.H, N, psi)
+    assert_close(fast[-200 + N + 1:], ref[N + 1:], rtol=1e-9)

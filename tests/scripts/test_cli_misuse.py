@@ -49,6 +49,13 @@ CASES: dict[str, list] = {
         *[misuse(flag, v) for flag in ("--videos", "--frames") for v in COUNT],
         misuse("--frames", "2000000"),  # beyond the generator's limit
     ],
+    "otb_motion": [
+        misuse(mentions="--out"), misuse("--out", "{under_file}"), misuse("--out", "{file}"),
+        misuse("--out", "{out}", mentions="--otb-root"),  # $OTB_ROOT unset
+        misuse("--out", "{out}", "--otb-root", "{missing}"), misuse("--out", "{out}", "--otb-root", "{file}"),
+        misuse("--out", "{out}", "--otb-root", "{dir}", mentions="--otb-root"),
+        *[misuse("--out", "{out}", "--tracks", v) for v in COUNT], misuse("--out", "{out}", "--seed", "-1"),
+    ],
     "video_camera": [
         *[misuse("--n-videos", v) for v in COUNT],
         *[misuse("--frames", v) for v in ("3", "0", "abc")],  # the env needs >= 8 frames
@@ -90,7 +97,7 @@ def test_help_prints_usage_and_exits_0(name, scripts, capsys):
 
 def test_every_script_is_covered():
     """A new script gets misuse cases here (or in its own test module, named in ELSEWHERE)."""
-    elsewhere = {"train", "compare", "track_video", "otb_eval", "bench_filters", "video_table"}  # their helpers' tests
+    elsewhere = {"train", "compare", "track_video", "otb_eval", "bench_filters", "video_table", "smooth"}  # their helpers' tests
     assert set(HELP) == set(CASES) | elsewhere
 
 

@@ -39,6 +39,8 @@ TRAIN = [
     misuse("--env-kwargs", "nope:1", mentions="nope"),
     misuse("--env-kwargs", "backend:kf", mentions="--env-kwargs ['backend']"),
     misuse("--env", "bboxtune/NoSuch-v0", mentions="NoSuch"),
+    *[misuse("--trackers", v) for v in ("", ",", "SiamFC,SiamFC", "a,,b")],
+    misuse("--trackers", "test", "--env-kwargs", "trackers=[SiamFC]", mentions="--trackers: given twice"),
     misuse("--timesteps", "64", "--backend", "kf", "--source", "otb", mentions="otb"),  # no OTB data ($OTB_ROOT unset)
 ]
 COMPARE = [

@@ -1,47 +1,152 @@
-"""scripts/compare.py on a tiny run with a few episodes."""
+"""scripts/compare.py on a tiny run with a few episodes: methods, columns, the episode choice of --seed / --split,
+transfer with --env-kwargs, OTB enumeration with sequence clusters (the OTB cases need $OTB_ROOT)."""
 
 from __future__ import annotations
 
 import csv
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from agents.splits import eval_seeds, split_of, split_seeds
+
 from .tiny_run import load_script, tiny_run, train  # noqa: F401  (fixtures)
 
-REQUIRED = ("method", "backend", "episode", "rmse", "rule_rmse", "success_auc", "precision20")
-METHODS = {"rule", "rule_est_sigma", "rule_true_sigma", "oracle", "global", "amortised", "adaptive", "ppo", "ppo_best"}
+REQUIRED = ("method", "episode", "sequence", "tracker", "rmse", "success_auc", "precision20")
+METHODS = {"raw", "rule", "rule_est_sigma", "rule_true_sigma", "oracle", "oracle_auc", "global", "amortised", "adaptive",
+           "ppo", "ppo_best"}
 EPISODES = 6
+FAST = ["--train-episodes", "24", "--global-trials", "8", "--oracle-budget", "16", "--bootstrap", "50"]
+OTB = os.environ.get("OTB_ROOT")
+needs_otb = pytest.mark.skipif(not OTB or not Path(OTB).is_dir(), reason="needs the OTB data ($OTB_ROOT)")
+
+
+def compare(run: Path, out: Path, *args: str) -> Path:
+    return load_script("compare").main(["--model", str(run), *FAST, "--out", str(out), *args])
+
+
+def rows(out: Path) -> list[dict[str, str]]:
+    with open(out / "results.csv") as fh:
+        return list(csv.DictReader(fh))
+
+
+def of(table: list[dict[str, str]], method: str, key: str) -> list[str]:
+    return [r[key] for r in sorted((r for r in table if r["method"] == method), key=lambda r: int(r["episode"]))]
 
 
 @pytest.fixture(scope="module")
 def compared(tiny_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("compare")
-    load_script("compare").main(["--model", str(tiny_run), "--episodes", str(EPISODES), "--train-episodes", "24",
-                                 "--global-trials", "8", "--oracle-budget", "16", "--bootstrap", "50", "--out", str(out)])
-    return out
+    return compare(tiny_run, tmp_path_factory.mktemp("compare"), "--episodes", str(EPISODES))
 
 
 def test_results_csv(compared: Path) -> None:
-    with open(compared / "results.csv") as fh:
-        rows = list(csv.DictReader(fh))
-    assert set(REQUIRED) <= set(rows[0])
-    assert {r["method"] for r in rows} == METHODS and len(rows) == len(METHODS) * EPISODES
-    assert {r["backend"] for r in rows} == {"ufir_cmn"}
-    by = {m: {int(r["episode"]): r for r in rows if r["method"] == m} for m in METHODS}
+    table = rows(compared)
+    assert tuple(table[0])[: len(REQUIRED)] == REQUIRED
+    assert {r["method"] for r in table} == METHODS and len(table) == len(METHODS) * EPISODES
+    assert {r["backend"] for r in table} == {"ufir_cmn"} and {(r["sequence"], r["tracker"]) for r in table} == {("", "")}
+    assert of(table, "rule", "noise_seed") == [str(s) for s in eval_seeds("test", EPISODES)]  # seed 0: today's set
+    by = {m: {int(r["episode"]): r for r in table if r["method"] == m} for m in METHODS}
     for e in range(EPISODES):
         rule = float(by["rule"][e]["rmse"])
         assert float(by["rule"][e]["log_ratio"]) == 0.0
         assert all(float(by[m][e]["rule_rmse"]) == rule for m in METHODS)
         assert float(by["oracle"][e]["rmse"]) <= min(rule, float(by["rule_true_sigma"][e]["rmse"]))
-        assert np.isfinite(float(by["ppo"][e]["rmse"]))
+        assert float(by["oracle_auc"][e]["success_auc"]) >= float(by["rule"][e]["success_auc"])
+        assert np.isfinite(float(by["ppo"][e]["rmse"])) and by["raw"][e]["param_psi"] == "nan"
+
+
+def test_raw_is_the_unfiltered_measurement(compared: Path, tiny_run: Path) -> None:
+    import gymnasium as gym
+
+    from envs.scoring import score_estimates
+
+    env = gym.make("bboxtune/FilterTune-v0", track_length=100, split="test")
+    table = rows(compared)
+    for e, seed in enumerate(eval_seeds("test", 2)):
+        env.reset(options={"noise_seed": int(seed)})
+        ep = env.unwrapped.episode
+        expected = score_estimates(ep.y[None], ep.truth)
+        assert float(of(table, "raw", "rmse")[e]) == pytest.approx(expected["rmse"][0], rel=1e-12)
+        assert float(of(table, "raw", "success_auc")[e]) == pytest.approx(expected["success_auc"][0], rel=1e-12)
 
 
 def test_summary_and_figures(compared: Path) -> None:
     text = (compared / "summary.md").read_text()
     for needle in ("## RMSE (px)", "IQM", "win rate vs rule", "regret vs oracle", "success AUC", "precision@20px",
-                   "GT used at test", "## Paired: ppo against each method", "| oracle | y (truth) |"):
+                   "GT used at test", "## Paired: ppo against each method", "| oracle | y (truth) |", "| raw | n |",
+                   "| oracle_auc | y (truth) |", "resamples of episodes (6 clusters: every episode its own)",
+                   "(the run's own)"):
         assert needle in text, needle
+    assert "Success AUC Δ vs raw by OTB attribute" not in text and "## Per tracker" not in text
     for name in ("gain_boxplot.png", "otb_curves.png", "trajectory.png"):
         assert (compared / name).stat().st_size > 1000
+
+
+def test_seed_and_split_choose_the_episodes(tiny_run: Path, tmp_path: Path) -> None:
+    first = rows(compare(tiny_run, tmp_path / "a", "--episodes", "3", "--seed", "4", "--split", "val"))
+    again = rows(compare(tiny_run, tmp_path / "b", "--episodes", "3", "--seed", "4", "--split", "val"))
+    seeds = of(first, "rule", "noise_seed")
+    assert seeds == [str(s) for s in split_seeds("val", 3, 4)] and all(split_of(int(s)) == "val" for s in seeds)
+    assert of(first, "ppo", "rmse") == of(again, "ppo", "rmse") and of(first, "global", "rmse") == of(again, "global", "rmse")
+    train_split = rows(compare(tiny_run, tmp_path / "c", "--episodes", "2", "--split", "train", "--seed", "1"))
+    assert of(train_split, "rule", "noise_seed") == [str(s) for s in split_seeds("train", 2, 1)]
+
+
+def test_env_kwargs_change_the_evaluation_env(tiny_run: Path, tmp_path: Path) -> None:
+    out = compare(tiny_run, tmp_path / "t", "--episodes", "2", "--env-kwargs", "track_length=40", "psi_range:[0.5, 0.6]")
+    text = (out / "summary.md").read_text()
+    assert "changed from the run's: ['psi_range', 'track_length']" in text
+    psi = [float(p) for p in of(rows(out), "rule", "true_psi")]
+    assert all(0.5 <= p <= 0.6 for p in psi)
+
+
+@needs_otb
+def test_otb_episodes_are_every_sequence_times_seeds_with_sequence_clusters(tiny_run: Path, tmp_path: Path) -> None:
+    out = compare(tiny_run, tmp_path / "otb", "--env-kwargs", "source=otb", "--seeds-per-sequence", "2")
+    table = rows(out)
+    sequences = of(table, "rule", "sequence")
+    assert len(sequences) == 2 * len(set(sequences)) and all(sequences.count(s) == 2 for s in sequences)
+    assert len({*of(table, "rule", "noise_seed")}) == len(sequences) and set(of(table, "rule", "tracker")) == {""}
+    assert "rule_true_sigma" not in {r["method"] for r in table}
+    text = (out / "summary.md").read_text()
+    n = len(set(sequences))
+    assert f"resamples of sequences ({n} clusters; every drawn sequence brings all its episodes, {2 * n} in all)" in text
+    for needle in ("## Success AUC and precision@20px against raw and the rule", "Success AUC Δ vs raw by OTB attribute",
+                   "Success AUC Δ vs rule by OTB attribute", "| OCC (n=", f"{2 * n} = {n} test-split sequences × 2"):
+        assert needle in text, needle
+
+
+@needs_otb
+def test_otb_tracker_episodes_are_every_sequence_times_every_tracker_with_output(tiny_run: Path, tmp_path: Path) -> None:
+    out = compare(tiny_run, tmp_path / "trk", "--env-kwargs", "source=otb_tracker", "trackers=[MEEM, SiamFC]")
+    table = rows(out)
+    from envs.otb import OTBDataset, split
+
+    data = OTBDataset(OTB)
+    test = split(data.names)["test"]
+    meem = set(data.tracker_sequences("MEEM"))  # MEEM lacks some sequences: clusters of 1 and 2 episodes
+    expected = [(s, t) for s in test for t in ("MEEM", "SiamFC") if t == "SiamFC" or s in meem]
+    assert list(zip(of(table, "rule", "sequence"), of(table, "rule", "tracker"))) == expected
+    assert len(expected) < 2 * len(test)
+    text = (out / "summary.md").read_text()
+    assert f"resamples of sequences ({len(test)} clusters; every drawn sequence brings all its episodes, " \
+           f"{len(expected)} in all)" in text
+    assert f"{len(expected)} = {len(test)} test-split sequences × 2 trackers" in text
+    for needle in ("## Per tracker", "| MEEM | raw |", "| MEEM | ppo |", "| SiamFC | oracle |", "| SiamFC | oracle_auc |",
+                   "| SiamFC | ppo_best |"):
+        assert needle in text, needle
+    assert "| MEEM | global |" not in text  # per tracker: raw, rule, the learned models and the oracles
+
+
+@needs_otb
+def test_mix_episodes_are_drawn_and_cluster_by_sequence_where_they_have_one(tiny_run: Path, tmp_path: Path) -> None:
+    out = compare(tiny_run, tmp_path / "mix", "--env-kwargs", "source=mix", "--episodes", "8")
+    table = rows(out)
+    sources, sequences = of(table, "rule", "source"), of(table, "rule", "sequence")
+    assert len(sources) == 8 and {"sim", "otb"} <= set(sources)
+    assert all((s == "") == (src == "sim") for s, src in zip(sequences, sources))
+    lone, named = sources.count("sim"), len({s for s in sequences if s})
+    assert f"({lone + named} clusters: {named} sequences, each with all its episodes, and {lone} episodes without a " \
+           "sequence)" in (out / "summary.md").read_text()

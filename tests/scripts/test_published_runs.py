@@ -2,8 +2,9 @@
 
 The fast tests load each committed run without pickles and check its spaces; the slow test re-runs
 ``scripts/compare.py --model docs/results/<backend>/run --episodes 500`` and checks that the tables of its
-summary.md equal the published docs/results/<backend>/summary.md and that every number of the README's rows
-for that back end is in the new summary (about 2 minutes per back end on 2 cores)."""
+summary.md equal the published docs/results/<backend>/summary.md (less the rows of methods added since: raw,
+oracle_auc) and that every number of the README's rows for that back end is in the new summary (a few minutes
+per back end on 2 cores)."""
 
 from __future__ import annotations
 
@@ -42,8 +43,12 @@ def test_committed_run_loads_without_pickles(backend: str) -> None:
         assert env.action_space.contains(action.astype(env.action_space.dtype))
 
 
+ADDED = ("raw", "oracle_auc")  # methods compare.py has scored since the runs were published (issue 11)
+
+
 def _tables(summary: str) -> list[str]:
-    return [line for line in summary.splitlines() if line.startswith("|")]
+    """The table lines of a summary, without the rows of the methods added since publication."""
+    return [line for line in summary.splitlines() if line.startswith("|") and line.split("|")[1].strip() not in ADDED]
 
 
 def _readme_rows(backend: str) -> list[tuple[str, list[str]]]:

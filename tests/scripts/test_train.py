@@ -211,3 +211,20 @@ def test_tensorboard_without_the_package_fails_clearly(train: ModuleType, tmp_pa
         assert "tensorboard" in line and not (tmp_path / "tb").exists()
     else:
         pytest.skip(reason="tensorboard is installed here, so the missing-package error cannot occur")
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--source", "otb_tracker"], "train"),  # the default: never the held-out trackers
+    (["--source", "mix"], "train"),
+    (["--source", "mix", "--env-kwargs", "mix_weights=[1, 1, 0]"], None),  # no tracker episodes: nothing to set
+    (["--source", "otb_tracker", "--trackers", "test"], "test"),
+    (["--source", "otb_tracker", "--trackers", "SiamFC,STRUCK"], ["SiamFC", "STRUCK"]),
+    (["--source", "otb_tracker", "--env-kwargs", "tracker=STRUCK"], None),  # one tracker given: kept as it is
+    (["--source", "otb"], None),
+])
+def test_tracker_set_of_a_new_run(train: ModuleType, argv: list[str], expected) -> None:
+    from envs.otb import TRACKER_SPLIT
+
+    args = train.parse_args(argv)
+    want = list(TRACKER_SPLIT[expected]) if isinstance(expected, str) else expected
+    assert args.env_kwargs.get("trackers") == want

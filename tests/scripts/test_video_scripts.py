@@ -123,7 +123,7 @@ TABLE_MISUSE = [
     misuse("--backends", "kf", "kf"), misuse("--detectors"), misuse("--n-tes", "3", mentions="--n-tes"),
     misuse("--out", "{file}"), misuse("--out", "{under_file}"), misuse("--out", ""),
     misuse("--out", "{dir}/..", mentions="not empty"),  # the temporary folder holding the placeholders
-    misuse("--cache", "{file}"), misuse("--cache", "{under_file}"),
+    misuse("--cache", "{file}"), misuse("--cache", "{under_file}"), misuse("--out", "{out}", "--cache", "{out}/c"),
     misuse("--tuned", "{missing}"), misuse("--tuned", "{dir}"), misuse("--tuned", "{file}"),
     misuse("--tuned", "{bad_json}", mentions="{bad_json}:2"),
     misuse("--trust-pickle", mentions="--tuned"),

@@ -32,6 +32,13 @@ def test_image_folder_missing_image_raises(tmp_path):
         image_folder(tmp_path / "nope")
 
 
+def test_image_folder_two_files_of_one_number_raise(tmp_path):
+    write_images(tmp_path, [1, 2])
+    cv2.imwrite(str(tmp_path / "1.jpg"), np.zeros((16, 24, 3), np.uint8))  # image 1 again, another name
+    with pytest.raises(ValueError, match="0001.png and 1.jpg are both image 1"):
+        image_folder(tmp_path)
+
+
 def test_otb_frames_use_sequences_csv_first_frame_and_ground_truth(tmp_path):
     root = tmp_path / "otb"
     (root / "groundtruth").mkdir(parents=True)

@@ -1,0 +1,75 @@
+"""Misuse of compare.py's evaluation flags (--env, --env-kwargs, --split, --episodes, --seeds-per-sequence) and of a
+model in an env it cannot act in: exit 2, one line naming the flag or space, no traceback, nothing written (the
+contract and the placeholders are in ``cli_misuse.py``; ``{run}`` is a finished tiny run of ufir_cmn on sim)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from .cli_misuse import MisusePaths, check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
+from .tiny_run import load_script, tiny_run, train  # noqa: F401  (fixtures)
+
+OTB = os.environ.get("OTB_ROOT", "")
+WITH_OTB = {"OTB_ROOT": OTB}
+
+CASES = [
+    misuse("--model", "{run}", "--env-kwargs", "track_length=3", mentions="--env-kwargs: track_length=3"),
+    misuse("--model", "{run}", "--env-kwargs", "track_length:abc", mentions="--env-kwargs: track_length='abc'"),
+    misuse("--model", "{run}", "--env-kwargs", "nope=1", mentions="nope"),
+    misuse("--model", "{run}", "--env-kwargs", "track_length", mentions="--env-kwargs 'track_length': expected KEY=VALUE"),
+    misuse("--model", "{run}", "--env-kwargs", "psi_range=[0, 1", mentions="not valid YAML"),
+    misuse("--model", "{run}", "--env-kwargs", "a=1", "a:2", mentions="a given twice"),
+    misuse("--model", "{run}", "--env-kwargs", "split=val", mentions="--env-kwargs split"),
+    misuse("--model", "{run}", "--env-kwargs", "backend=kf",
+           mentions="action_space float32[2] sets ['psi', 'horizon'] of back end ufir_cmn"),
+    misuse("--model", "{run}", "--env-kwargs", "backend=kf_cmn",
+           mentions="action_space float32[2] of the model differs from the evaluation env's float32[3]"),
+    misuse("--model", "{run}", "--env-kwargs", "tune=[horizon]", mentions="action_space float32[2] of the model differs"),
+    misuse("--model", "{run}", "--env-kwargs", "horizon_max=100", mentions="horizon_max 400"),
+    misuse("--model", "{run}", "--env-kwargs", "source=otb", mentions="--env-kwargs"),  # $OTB_ROOT unset
+    misuse("--model", "{run}", "--env", "bboxtune/FilterRetune-v0", mentions="--env"),
+    misuse("--model", "{run}", "--env", "bboxtune/NoSuch-v0", mentions="--env"),
+    misuse("--model", "{run}", "--split", "nope"), misuse("--model", "{run}", "--split"),
+    misuse("--model", "{run}", "--seeds-per-sequence", "3", mentions="--seeds-per-sequence applies to source 'otb'"),
+    *[misuse("--model", "{run}", "--seeds-per-sequence", v) for v in ("0", "-1", "abc", "1.5")],
+    misuse("--model", "{run}", "--env-kwargs", "source=video", "--seeds-per-sequence", "2", mentions="--seeds-per-sequence"),
+]
+OTB_CASES = [
+    misuse("--model", "{run}", "--env-kwargs", "source=otb", "--episodes", "5", env=WITH_OTB,
+           mentions="--episodes: source 'otb' enumerates its episodes"),
+    misuse("--model", "{run}", "--env-kwargs", "source=otb_tracker", "--episodes", "5", env=WITH_OTB,
+           mentions="--episodes: source 'otb_tracker'"),
+    misuse("--model", "{run}", "--env-kwargs", "source=otb_tracker", "--seeds-per-sequence", "2", env=WITH_OTB,
+           mentions="--seeds-per-sequence"),
+    misuse("--model", "{run}", "--env-kwargs", "source=otb_tracker", "tracker=Nope", env=WITH_OTB, mentions="Nope"),
+    misuse("--model", "{run}", "--env-kwargs", "source=otb", "--split", "val", "--episodes", "3", env=WITH_OTB,
+           mentions="every val-split sequence"),
+    misuse("--model", "{run}", "--env-kwargs", "source=otb_tracker", "--trackers", "SiamFC,Nope", env=WITH_OTB,
+           mentions="--env-kwargs/--trackers: env"),
+    misuse("--model", "{run}", "--env-kwargs", "source=otb", "--trackers", "test", env=WITH_OTB,
+           mentions="with source='otb'"),
+    misuse("--model", "{run}", "--env-kwargs", "source=otb_tracker", "trackers=[SiamFC]", "--trackers", "test",
+           env=WITH_OTB, mentions="--trackers: given twice"),
+    *[misuse("--model", "{run}", "--trackers", v, env=WITH_OTB) for v in ("", ",", "SiamFC,SiamFC", "a,,b")],
+]
+
+
+@pytest.fixture
+def run_paths(misuse_paths: MisusePaths, tiny_run: Path) -> MisusePaths:
+    shutil.copytree(tiny_run, misuse_paths.root / "run")
+    return MisusePaths(misuse_paths.root, misuse_paths.work, {**misuse_paths.names, "run": str(misuse_paths.root / "run")})
+
+
+@pytest.mark.parametrize("case", CASES, ids=str)
+def test_misuse_exits_2_with_one_line_and_writes_nothing(case, run_paths, capsys, monkeypatch) -> None:
+    check_misuse(load_script("compare").main, case, run_paths, capsys, monkeypatch)
+
+
+@pytest.mark.skipif(not OTB or not Path(OTB).is_dir(), reason="needs the OTB data ($OTB_ROOT)")
+@pytest.mark.parametrize("case", OTB_CASES, ids=str)
+def test_otb_misuse_exits_2_with_one_line_and_writes_nothing(case, run_paths, capsys, monkeypatch) -> None:
+    check_misuse(load_script("compare").main, case, run_paths, capsys, monkeypatch)
