@@ -8,18 +8,14 @@ Prints rates only (speed is never asserted by the tests). Run on an idle machine
 
 from __future__ import annotations
 
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from agents.cli import ArgumentParser, argument_errors, positive_int  # noqa: E402
-from envs.video.camera import background_shift  # noqa: E402
-from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
-from envs.video.synthetic import VideoRanges, synthetic_video  # noqa: E402
+from agents.cli import ArgumentParser, argument_errors, positive_int
+from envs.video.camera import background_shift
+from envs.video.detectors import DETECTORS, detect_video, make_detector
+from envs.video.synthetic import VideoRanges, synthetic_video
 
 
 def main(argv: list[str] | None = None) -> int:

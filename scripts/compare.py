@@ -46,23 +46,21 @@ import time
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+import gymnasium as gym
+import torch
 
-import gymnasium as gym  # noqa: E402
-import torch  # noqa: E402
-
-from agents.baselines import GridSearch, OraclePolicy  # noqa: E402
-from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, key_values, nonnegative_int,  # noqa: E402
+from agents.baselines import GridSearch, OraclePolicy
+from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, key_values, nonnegative_int,
                         out_dir, positive_int, tracker_set)
-from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,  # noqa: E402
+from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,
                              standard_policies)
-from agents.plots import gain_boxplot, otb_curves, trajectories  # noqa: E402
-from agents.report import by_method, summary_markdown, write_results_csv  # noqa: E402
-from agents.run_files import RunError, write_text_atomic  # noqa: E402
-from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env  # noqa: E402
-from agents.safe_load import check_env_match  # noqa: E402
-from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec  # noqa: E402
-from envs.config import EnvConfig  # noqa: E402
+from agents.plots import gain_boxplot, otb_curves, trajectories
+from agents.report import by_method, summary_markdown, write_results_csv
+from agents.run_files import RunError, write_text_atomic
+from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env
+from agents.safe_load import check_env_match
+from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
+from envs.config import EnvConfig
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"
 MIN_TRAIN_EPISODES = 11  # AmortisedPolicy's MLP holds out ceil(10 %) for early stopping and needs >= 2 of them

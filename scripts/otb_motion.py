@@ -15,19 +15,16 @@ from __future__ import annotations
 import json
 import sys
 from dataclasses import asdict
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import welch
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from agents.cli import ArgumentParser, existing_dir, int_range, nonnegative_int, out_dir  # noqa: E402
-from agents.run_files import write_text_atomic  # noqa: E402
-from envs.otb import OTBDataset, split  # noqa: E402
-from envs.sim_motion import OTBMotion  # noqa: E402
-from envs.simulate import ScenarioRanges, simulate_each  # noqa: E402
+from agents.cli import ArgumentParser, existing_dir, int_range, nonnegative_int, out_dir
+from agents.run_files import write_text_atomic
+from envs.otb import OTBDataset, split
+from envs.sim_motion import OTBMotion
+from envs.simulate import ScenarioRanges, simulate_each
 
 TAU = 1 / 30  # s, OTB frame interval
 LAGS = (1, 2, 3, 5, 10, 20, 40)  # frames, autocorrelation table
@@ -219,13 +216,16 @@ def report(result: dict) -> str:
             f"## Statistics (τ = {TAU:.4g} s; sim: integer-rounded truth)\n\n{head}\n" + "\n".join(rows) + "\n")
 
 
+DEFAULT_TRACKS = 300  # simulated tracks per motion model
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = ArgumentParser(prog="otb_motion.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("--otb-root", type=existing_dir, default=None, help="OTB data folder (default: $OTB_ROOT)")
     parser.add_argument("--out", type=out_dir, required=True,
                         help="folder for otb_motion.json and otb_motion.md (created if missing; these two files are "
                              "replaced, each atomically)")
-    parser.add_argument("--tracks", type=int_range(1, 100_000), default=300,
+    parser.add_argument("--tracks", type=int_range(1, 100_000), default=DEFAULT_TRACKS,
                         help="simulated tracks per motion model (default 300)")
     parser.add_argument("--seed", type=nonnegative_int, default=0, help="first noise seed of the simulated tracks")
     args = parser.parse_args(argv)
@@ -239,7 +239,10 @@ def main(argv: list[str] | None = None) -> int:
             stats[f"sim_{name}"] = track_stats(simulated(name, args.tracks, args.seed))
     except (ValueError, OSError) as err:
         parser.error(f"--otb-root: {err}")
-    result = {"fitted": asdict(motion), "fit": extra, "stats": stats, "tau": TAU, "command": " ".join(["python scripts/otb_motion.py", *(argv if argv is not None else sys.argv[1:])])}
+    result = {"fitted": asdict(motion), "fit": extra, "stats": stats, "tau": TAU,
+              "command": " ".join(["python scripts/otb_motion.py --otb-root $OTB_ROOT", f"--out {args.out}",  # no local root
+                                   *([f"--tracks {args.tracks}"] if args.tracks != DEFAULT_TRACKS else []),
+                                   *([f"--seed {args.seed}"] if args.seed else [])])}
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out / "otb_motion.json", json.dumps(result, indent=1) + "\n")

@@ -27,21 +27,18 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+import numpy as np
+import torch
+from tqdm import tqdm
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from tqdm import tqdm  # noqa: E402
-
-from agents import pretrained  # noqa: E402
-from agents.cli import ArgumentParser, HelpFormatter, argument_errors, existing_dir, float_range, out_dir  # noqa: E402
-from agents.tune import DEFAULT_PRETRAINED, TAU_RANGE, Tuner, check_boxes  # noqa: E402
-from envs.actions import ACCEPTS  # noqa: E402
-from envs.otb import OTBDataset  # noqa: E402
-from envs.otb_io import read_boxes  # noqa: E402
-from otb_eval import evaluate  # noqa: E402
-from video_common import csv_text, folder_in_use, publish_folder  # noqa: E402
+from agents import pretrained
+from agents.cli import ArgumentParser, HelpFormatter, argument_errors, existing_dir, float_range, out_dir
+from agents.tune import DEFAULT_PRETRAINED, TAU_RANGE, Tuner, check_boxes
+from envs.actions import ACCEPTS
+from envs.otb import OTBDataset
+from envs.otb_io import read_boxes
+from otb_eval import evaluate
+from video_common import csv_text, folder_in_use, publish_folder
 
 
 def build_parser() -> ArgumentParser:

@@ -28,33 +28,29 @@ only for runs you trust).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+import cv2
+import numpy as np
+from tqdm import tqdm
+from video_common import write_csv, write_json
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
-from video_common import write_atomic, write_csv, write_json  # noqa: E402
-
-import filters  # noqa: E402
-from agents.cli import (ArgumentParser, box_xywh, existing_dir, existing_file, int_range, nonnegative_int,  # noqa: E402
+import filters
+from agents.cli import (ArgumentParser, box_xywh, existing_dir, existing_file, int_range, nonnegative_int,
                         out_dir)
-from agents.run_files import RunError  # noqa: E402
-from agents.runs import check_free  # noqa: E402
-from envs import metrics  # noqa: E402
-from envs.actions import ACCEPTS  # noqa: E402
-from envs.boxes import cxcywh_to_xywh, xywh_to_cxcywh  # noqa: E402
-from envs.config import EnvConfig  # noqa: E402
-from envs.video.camera import frame_shift, run_compensated  # noqa: E402
-from envs.video.detectors import DETECTORS, make_detector, to_gray  # noqa: E402
-from envs.video.frames import otb_frames, video_file  # noqa: E402
-from envs.video.source import VideoSettings, VideoSource  # noqa: E402
-from envs.video.synthetic import VideoRanges, synthetic_video  # noqa: E402
-from envs.video.tuning import load_tuner, rule_params  # noqa: E402
+from agents.run_files import RunError, atomic_write
+from agents.runs import check_free
+from envs import metrics
+from envs.actions import ACCEPTS
+from envs.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from envs.config import EnvConfig
+from envs.video.camera import frame_shift, run_compensated
+from envs.video.detectors import DETECTORS, make_detector, to_gray
+from envs.video.frames import otb_frames, video_file
+from envs.video.source import VideoSettings, VideoSource
+from envs.video.synthetic import VideoRanges, synthetic_video
+from envs.video.tuning import load_tuner, rule_params
 
 _GREEN, _RED, _BLUE = (40, 170, 40), (40, 40, 220), (230, 80, 40)  # BGR
 
@@ -220,7 +216,7 @@ def write_annotated(out: Path, frames, fps: float, truth: np.ndarray, raw: np.nd
         writer.release()
 
     try:
-        write_atomic(path, write)
+        atomic_write(path, write)
         return path
     except OSError:
         picks, strip = set(np.linspace(0, T - 1, 8).astype(int).tolist()), []
@@ -228,7 +224,7 @@ def write_annotated(out: Path, frames, fps: float, truth: np.ndarray, raw: np.nd
             if n in picks:
                 strip.append(annotate(frame, [(truth[n], _GREEN), (raw[n], _RED), (est[n], _BLUE)], n))
         png = out / "strip.png"
-        write_atomic(png, lambda p: cv2.imwrite(str(p), np.concatenate(strip, axis=1)))
+        atomic_write(png, lambda p: cv2.imwrite(str(p), np.concatenate(strip, axis=1)))
         return png
 
 

@@ -37,33 +37,31 @@ import time
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+import gymnasium
+import numpy as np
+import stable_baselines3
+import torch
+import yaml
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
-import gymnasium  # noqa: E402
-import numpy as np  # noqa: E402
-import stable_baselines3  # noqa: E402
-import torch  # noqa: E402
-import yaml  # noqa: E402
-from stable_baselines3.common.base_class import BaseAlgorithm  # noqa: E402
-from stable_baselines3.common.callbacks import CallbackList, EvalCallback  # noqa: E402
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize  # noqa: E402
-
-import envs  # noqa: E402,F401
-import filters  # noqa: E402
-from agents.algos import ALGOS, algo_class  # noqa: E402
-from agents.callbacks import AtomicCheckpoint, EpisodeLog, SaveBest, restore_eval_state  # noqa: E402
-from agents.checkpoints import Checkpoint, newest_complete  # noqa: E402
-from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, key_values, nonnegative_int, out_dir,  # noqa: E402
+import envs  # noqa: F401
+import filters
+from agents.algos import ALGOS, algo_class
+from agents.callbacks import AtomicCheckpoint, EpisodeLog, SaveBest, restore_eval_state
+from agents.checkpoints import Checkpoint, newest_complete
+from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, key_values, nonnegative_int, out_dir,
                         positive_int, tracker_set)
-from agents.hyperparams import Hyperparams, constructor_kwargs, load_hyperparams  # noqa: E402
-from agents.plots import learning_curve  # noqa: E402
-from agents.run_files import (PICKLED_REPLAY, REPLAY, STATS, RunError, atomic_write, load_normalizer,  # noqa: E402
+from agents.hyperparams import Hyperparams, constructor_kwargs, load_hyperparams
+from agents.plots import learning_curve
+from agents.run_files import (PICKLED_REPLAY, REPLAY, STATS, RunError, atomic_write, load_normalizer,
                               load_replay_buffer, save_stats, write_text_atomic)
-from agents.runs import (CONFIG, ENV_ERRORS, RESUME_KEYS, RunLock, check_free, claim_run_dir, load_config,  # noqa: E402
+from agents.runs import (CONFIG, ENV_ERRORS, RESUME_KEYS, RunLock, check_free, claim_run_dir, load_config,
                          make_env, make_vec)
-from agents.safe_load import load_model, stamp  # noqa: E402
-from envs.config import SOURCES  # noqa: E402
-from envs.otb import TRACKER_SPLIT  # noqa: E402
+from agents.safe_load import load_model, stamp
+from envs.config import SOURCES
+from envs.otb import TRACKER_SPLIT
 
 DEFAULT_ENV = "bboxtune/FilterTune-v0"
 RESUME_FLAGS = {"--resume", "--timesteps", "--trust-pickle"}  # the only flags a resume takes: the rest is config.yml's

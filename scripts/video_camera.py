@@ -23,22 +23,20 @@ any work: a bad value exits 2 with one line naming the flag, and nothing is writ
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import matplotlib  # noqa: E402
+import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
-from video_common import bootstrap_ci, write_atomic, write_csv, write_json  # noqa: E402
+from video_common import bootstrap_ci, write_csv, write_json  # noqa: E402
 
 import filters  # noqa: E402
-from agents.cli import (ArgumentParser, argument_errors, nonnegative_int, out_dir,  # noqa: E402
-                        positive_float, positive_int)
+from agents.cli import (ArgumentParser, argument_errors, nonnegative_int, out_dir, positive_float,  # noqa: E402
+                        positive_int)
+from agents.run_files import atomic_write  # noqa: E402
 from envs.config import EnvConfig  # noqa: E402
 from envs.video.camera import UKF_CAMERA, background_shift, run_compensated  # noqa: E402
 from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
@@ -154,7 +152,7 @@ def figure(path: Path, results: list[dict], args: argparse.Namespace) -> None:
               f"σ_v × {args.example_smoothing:g}")
     ax[2].legend(fontsize=8)
     fig.tight_layout()
-    write_atomic(path, lambda p: fig.savefig(p, dpi=110))
+    atomic_write(path, lambda p: fig.savefig(p, dpi=110))
     plt.close(fig)
 
 

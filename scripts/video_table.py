@@ -25,20 +25,18 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
+from tqdm import tqdm
+from video_common import bootstrap_ci, csv_text, folder_in_use, json_text, publish_folder
 
-import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
-from video_common import bootstrap_ci, csv_text, folder_in_use, json_text, publish_folder  # noqa: E402
-
-import filters  # noqa: E402
-from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int,  # noqa: E402
+import filters
+from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int,
                         out_dir)
-from envs.config import TRACK_LENGTH_MAX, EnvConfig  # noqa: E402
-from envs.scoring import run_positions, score_estimates  # noqa: E402
-from envs.video.detectors import DETECTORS  # noqa: E402
-from envs.video.source import VideoSettings, VideoSource  # noqa: E402
-from envs.video.tuning import Tuner, action_map, grid_tune, load_tuner, rule_params  # noqa: E402
+from envs.config import TRACK_LENGTH_MAX, EnvConfig
+from envs.scoring import run_positions, score_estimates
+from envs.video.detectors import DETECTORS
+from envs.video.source import VideoSettings, VideoSource
+from envs.video.tuning import Tuner, action_map, grid_tune, load_tuner, rule_params
 
 METHODS = ("raw", "rule", "tuned")
 MAX_VIDEOS = 1_000_000  # videos per split (envs.video.source.VideoSettings.video_pool)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -18,6 +19,10 @@ TINY = ["--timesteps", "64", "--n-envs", "2", "--hyperparams", "n_steps:16", "ba
 
 
 def load_script(name: str) -> ModuleType:
+    """``scripts/<name>.py`` as a module, imported as ``python scripts/<name>.py`` would run it: with scripts/ on
+    ``sys.path`` (its sibling modules, e.g. ``video_common``, import by name); the packages come from the install."""
+    if str(REPO / "scripts") not in sys.path:
+        sys.path.append(str(REPO / "scripts"))
     spec = importlib.util.spec_from_file_location(f"script_{name}", REPO / "scripts" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
