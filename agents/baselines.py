@@ -51,6 +51,9 @@ class Policy(ABC):
     def act(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
         """Action (d,) for the episode ``env`` was just reset to; ``obs`` its observation."""
 
+    def begin_episode(self) -> None:
+        """Called before an episode's first ``act`` (a policy with a memory forgets the last episode here)."""
+
 
 class ObsPolicy(Policy):
     """A policy of the observation only."""

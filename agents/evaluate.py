@@ -129,6 +129,8 @@ def evaluate(env: gym.Env, policies: Sequence[Policy], episodes: Sequence[Episod
     for i, spec in enumerate(tqdm(episodes, desc="test episodes", disable=not progress)):
         obs, _ = env.reset(options=spec.options())
         ep = base.episode
+        for p in policies:
+            p.begin_episode()
         actions = np.stack([p.act(obs, env) for p in policies])
         results = [base.score(a[None]) for a in actions]
         estimates = [ep.y[None], *(r["estimates"] for r in results)]

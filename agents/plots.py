@@ -85,3 +85,34 @@ def trajectories(path: Path, truth: np.ndarray, y: np.ndarray, estimates: dict[s
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7, ncol=3)
     _save(fig, path)
+
+
+def parameter_schedule(path: Path, schedules: dict[str, list[tuple[tuple[int, int], dict[str, float]]]],
+                       scenario: dict, title: str) -> None:
+    """One re-tuning episode: each method's parameters per window (steps over frames), one panel per parameter,
+    with the true schedule behind them — noise-regime switches (vertical lines, the regime's ψ and σ_ξ written
+    at its start), manoeuvre bursts (orange spans) and occlusion gaps (grey spans)."""
+    keys = sorted({k for sched in schedules.values() for _, params in sched for k in params})
+    fig, axes = plt.subplots(len(keys), 1, figsize=(8, 2.2 * len(keys) + 0.6), sharex=True, squeeze=False)
+    for ax, key in zip(axes[:, 0], keys):
+        for name, sched in schedules.items():
+            if not sched or key not in sched[0][1]:
+                continue
+            edges = [w[0] for w, _ in sched] + [sched[-1][0][1]]
+            ax.stairs([p[key] for _, p in sched], edges, label=name, lw=1.4)
+        for start, end in scenario.get("manoeuvres", []):
+            ax.axvspan(start, end, color="tab:orange", alpha=0.15, lw=0)
+        for start, end in scenario.get("gaps", []):
+            ax.axvspan(start, end, color="0.5", alpha=0.3, lw=0)
+        for regime in scenario.get("regimes", [])[1:]:
+            ax.axvline(regime["start"], color="k", lw=0.8, ls="--")
+        if key in ("horizon", "sigma_w", "sigma_v"):
+            ax.set_yscale("log")
+        ax.set_ylabel(key)
+    for regime in scenario.get("regimes", []):
+        axes[0, 0].annotate(f"ψ={regime['psi']:.2f}\nσξ={regime['sigma_xi']:.2g}", (regime["start"], 1.0),
+                            xycoords=("data", "axes fraction"), va="bottom", fontsize=7)
+    axes[-1, 0].set_xlabel("frame")
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    fig.suptitle(title + "\n(dashed: noise-regime switches; orange: manoeuvres; grey: occlusion gaps)", fontsize=9)
+    _save(fig, path)

@@ -34,7 +34,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
 import envs  # noqa: F401  (registers the env ids)
-from agents.algos import ALGOS
+from agents.algos import ALGOS, RECURRENT
 from agents.baselines import ObsPolicy
 from agents.cli import read_yaml
 from agents.hyperparams import load_hyperparams
@@ -177,19 +177,38 @@ def env_spaces_venv(cfg: dict[str, Any], where: Path) -> VecEnv:
 
 
 class SB3Policy(ObsPolicy):
-    """A trained SB3 tuner: VecNormalize's observation statistics, then the deterministic policy."""
+    """A trained SB3 tuner: VecNormalize's observation statistics, then the deterministic policy.
 
-    def __init__(self, model: BaseAlgorithm, normalizer: VecNormalize | None, name: str) -> None:
+    A recurrent policy (``ppo_lstm``) keeps its LSTM state across the steps of an episode in :meth:`act`
+    (reset by :meth:`begin_episode`); :meth:`predict` treats every row as the first step of its own episode."""
+
+    def __init__(self, model: BaseAlgorithm, normalizer: VecNormalize | None, name: str, recurrent: bool = False) -> None:
         self.model = model
         self.normalizer = normalizer
         self.name = name
+        self.recurrent = recurrent
+        self._state: Any = None  # the LSTM state after the episode's last act (recurrent only)
+
+    def _normalized(self, obs: np.ndarray) -> np.ndarray:
+        obs = np.asarray(obs, dtype=np.float32)
+        return self.normalizer.normalize_obs(obs) if self.normalizer is not None else obs
 
     def predict(self, obs: np.ndarray) -> np.ndarray:
-        obs = np.asarray(obs, dtype=np.float32)
-        if self.normalizer is not None:
-            obs = self.normalizer.normalize_obs(obs)
-        actions, _ = self.model.predict(obs, deterministic=True)
+        obs = self._normalized(obs)
+        starts = np.ones(len(obs), dtype=bool) if self.recurrent else None
+        actions, _ = self.model.predict(obs, episode_start=starts, deterministic=True)
         return np.asarray(actions, dtype=np.float64).reshape(len(obs), -1)
+
+    def begin_episode(self) -> None:
+        self._state = None
+
+    def act(self, obs: np.ndarray, env: gym.Env | None = None) -> np.ndarray:
+        if not self.recurrent:
+            return self.predict(np.asarray(obs)[None])[0]
+        first = np.array([self._state is None])
+        actions, self._state = self.model.predict(self._normalized(np.asarray(obs)[None]), state=self._state,
+                                                  episode_start=first, deterministic=True)
+        return np.asarray(actions, dtype=np.float64).reshape(-1)
 
     @classmethod
     def load(cls, run_dir: Path, which: str = "final", *, trust_pickle: bool = False,
@@ -219,4 +238,4 @@ class SB3Policy(ObsPolicy):
                            "observations")
         if normalizer is not None:
             normalizer.training, normalizer.norm_reward = False, False
-        return cls(model, normalizer, name=cfg["algo"])
+        return cls(model, normalizer, name=cfg["algo"], recurrent=cfg["algo"] in RECURRENT)

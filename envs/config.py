@@ -23,6 +23,7 @@ from envs.actions import ACCEPTS, DEFAULT_TUNE
 SOURCES = ("sim", "otb", "otb_tracker", "video", "mix")
 MIX_SOURCES = ("sim", "otb", "otb_tracker")  # the parts of source "mix", in the order of mix_weights
 SPLITS = ("train", "val", "test")
+SCENARIOS = ("stationary", "nonstationary")  # sim: one regime per track, or regimes switching within it
 REWARDS = ("rmse", "iou_precision", "success_auc")
 # Longest track (frames). Simulated box sizes are reflected at ``box_size_bounds`` (envs.simulate), so they
 # stay plausible at any length; the bound keeps a track's memory and filter time moderate (a 100,000-frame
@@ -134,6 +135,9 @@ class EnvConfig:
     # sim truth motion: "cv" (constant velocity, σ_w above) | "otb" (fitted to OTB-100, envs.sim_motion: scale-relative
     # velocity with manoeuvres, log-size random walk; sigma_w_range then only sets the rule's nominal σ_w)
     motion: str = "cv"
+    # sim "stationary": one ψ, σ_w, σ_ξ per track | "nonstationary": regime switches of ψ and σ_ξ, manoeuvre bursts
+    # and occlusion gaps within a track (envs.sim_regimes, documented with its ranges); sim / mix with motion "cv"
+    scenario: str = "stationary"
     # OTB sources
     otb_root: str | None = None  # folder of the OTB data; None -> $OTB_ROOT
     split: str = "train"  # "train" | "val" | "test": which sequences episodes are drawn from
@@ -161,6 +165,9 @@ class EnvConfig:
     # FilterRetune-v0
     window: int = 50  # frames per re-tuning step, integer in [8, TRACK_LENGTH_MAX // 2]
     history: int = 100  # frames of past measurements the re-tuning observation summarises, in [8, TRACK_LENGTH_MAX]
+    # "track": a step's reward is the change of the reward of the track so far (its returns add up to the whole
+    # track's reward, the evaluation's metric) | "window": the reward of the step's window alone
+    retune_reward: str = "track"
 
     def __post_init__(self) -> None:
         put = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731 (frozen: normalised values)
@@ -169,6 +176,11 @@ class EnvConfig:
         put("reward", check_choice("reward", self.reward, REWARDS))
         put("split", check_choice("split", self.split, SPLITS))
         put("motion", check_choice("motion", self.motion, ("cv", "otb")))
+        put("scenario", check_choice("scenario", self.scenario, SCENARIOS))
+        put("retune_reward", check_choice("retune_reward", self.retune_reward, ("track", "window")))
+        if self.scenario == "nonstationary" and (self.source not in ("sim", "mix") or self.motion != "cv"):
+            raise ValueError(f"scenario='nonstationary' with source={self.source!r}, motion={self.motion!r}: allowed "
+                             "only with source 'sim' or 'mix' (its sim part) and motion 'cv'")
         put("tune", _tune(self.backend, self.tune))
         put("track_length", check_integer("track_length", self.track_length, 8, TRACK_LENGTH_MAX))
         put("window", check_integer("window", self.window, 8, TRACK_LENGTH_MAX // 2))

@@ -172,3 +172,28 @@ def measurement_features(y: np.ndarray, tau: float | np.ndarray, nominal_sigma_v
     ]
     features = np.stack(columns, axis=-1).astype(np.float32)
     return features if batched else features[0]
+
+
+WINDOW_FEATURE_NAMES: tuple[str, ...] = ("log_var_resid_window", "acf1_resid_window", "log_var_resid_vs_rule",
+                                         "frac_missing_window")
+
+
+def window_features(y: np.ndarray, estimates: np.ndarray, rule_positions: np.ndarray) -> np.ndarray:
+    """What the filter just did, for a sequential tuner (len(WINDOW_FEATURE_NAMES),) float32, from one window's
+    measured boxes ``y`` (W, 4) (NaN = missing), the filter's position estimates there and the fixed rule's:
+
+    | index | name                  | definition                                                        | unit |
+    |-------|-----------------------|-------------------------------------------------------------------|------|
+    | 0     | log_var_resid_window  | log(var(y − ŷ) / scale²): the filter's residuals in the window    | – |
+    | 1     | acf1_resid_window     | their lag-1 autocorrelation (coloured noise or lag → > 0)         | – |
+    | 2     | log_var_resid_vs_rule | log var(y − ŷ) − log var(y − ŷ_rule): smoother (< 0) or rougher   | – |
+    | 3     | frac_missing_window   | fraction of the window's frames without a measurement             | – |
+
+    ``scale`` as in :func:`measurement_features` (median sqrt(w·h) of the window's boxes); floored the same way."""
+    Y = _time_last(y[None])
+    scale = np.atleast_1d(_scale(Y[:, 2] * Y[:, 3]))
+    resid, rule_resid = Y - _time_last(estimates[None]), Y - _time_last(rule_positions[None])
+    log_var = _log_var(resid, scale)
+    columns = [log_var, _acf(resid, 1)[:, 0], log_var - _log_var(rule_resid, scale),
+               np.mean(~np.isfinite(Y).all(axis=1), axis=-1)]
+    return np.stack(columns, axis=-1).astype(np.float32)[0]

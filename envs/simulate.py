@@ -174,14 +174,14 @@ def simulate(scenario: Scenario, rng: np.random.Generator, n_tracks: int | None 
     if n_tracks is not None and (not isinstance(n_tracks, (int, np.integer)) or n_tracks < 1):
         raise ValueError(f"n_tracks={n_tracks!r} is out of range: allowed None or an integer >= 1")
     s, B, T = scenario, 1 if n_tracks is None else int(n_tracks), scenario.n_frames
-    p0, v0, sigma, sigma_xi, sizes0 = _start(s)
+    p0, v0, sigma, sigma_xi, sizes0 = initial_conditions(s)
     w = rng.standard_normal((B, T - 1, len(sigma)))
     e = rng.standard_normal((B, T, s.M)) * sigma_xi
     if s.motion == "otb":
         normals, uniforms = rng.standard_normal((B, T + 1, 2)), rng.random((B, T, 2))
         truth, state, y = _assemble_otb([s] * B, w, normals, uniforms, _colour(e, s.psi))
     else:
-        truth, state, y = _assemble(np.tile(p0, (B, 1)), np.tile(v0, (B, 1)), w * sigma, s.tau, s.delta, _colour(e, s.psi),
+        truth, state, y = assemble(np.tile(p0, (B, 1)), np.tile(v0, (B, 1)), w * sigma, s.tau, s.delta, _colour(e, s.psi),
                                     sizes0, np.asarray(s.size_bounds, dtype=float))
     if n_tracks is None:
         return Track(truth=truth[0], truth_state=state[0], y=y[0], tau=s.tau)
@@ -195,7 +195,7 @@ def simulate_each(scenarios: list[Scenario], rngs: list[np.random.Generator]) ->
     s0 = scenarios[0]
     if len(rngs) != len(scenarios) or any((s.n_frames, s.ndim, s.motion) != (s0.n_frames, s0.ndim, s0.motion) for s in scenarios):
         raise ValueError("simulate_each needs one generator per scenario and scenarios of equal n_frames, ndim and motion")
-    starts = [_start(s) for s in scenarios]
+    starts = [initial_conditions(s) for s in scenarios]
     T, C, B = s0.n_frames, len(starts[0][2]), len(scenarios)
     w, e = np.empty((B, T - 1, C)), np.empty((B, T, s0.M))
     normals, uniforms = np.empty((B, T + 1, 2)), np.empty((B, T, 2))
@@ -211,11 +211,11 @@ def simulate_each(scenarios: list[Scenario], rngs: list[np.random.Generator]) ->
     column = lambda name: np.array([getattr(s, name) for s in scenarios])[:, None, None]  # noqa: E731
     p0, v0, sizes0 = (np.stack([start[k] for start in starts]) for k in (0, 1, 4))
     bounds = np.array([s.size_bounds for s in scenarios])[:, None]  # (B, 1, 2): low, high per track
-    truth, state, y = _assemble(p0, v0, w, column("tau"), column("delta"), cmn, sizes0[:, None], bounds)
+    truth, state, y = assemble(p0, v0, w, column("tau"), column("delta"), cmn, sizes0[:, None], bounds)
     return [Track(truth=truth[i], truth_state=state[i], y=y[i], tau=s.tau) for i, s in enumerate(scenarios)]
 
 
-def _start(s: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def initial_conditions(s: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Initial positions and velocities of the simulated coordinates (box sizes in log space), their
     acceleration noise std, the ξ std of each measured coordinate and the initial box size (w_0, h_0)
     (empty unless ndim = 4)."""
@@ -229,7 +229,7 @@ def _start(s: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
     return x0[:M], x0[M:], np.full(M, s.sigma_w), np.full(M, s.sigma_xi), np.empty(0)
 
 
-def _assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray, delta: float | np.ndarray,
+def assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray, delta: float | np.ndarray,
               cmn: np.ndarray, sizes0: np.ndarray, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Truth (B, T, M), true state (B, T, K) and measurements (B, T, M) from the drawn noise (``sizes0``: the
     initial (w_0, h_0) of a box track, (2,) or (B, 1, 2), and ``bounds`` its size bounds (low, high) px, (2,)
@@ -259,7 +259,7 @@ def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
     return float(rng.uniform(bounds[0], bounds[1])) if bounds[1] > bounds[0] else float(bounds[0])
 
 
-def _log_uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
+def log_uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
     return float(math.exp(_uniform(rng, (math.log(bounds[0]), math.log(bounds[1])))))
 
 
@@ -299,11 +299,11 @@ class ScenarioRanges:
         draws its levels after the other fields, so the "cv" fields of a seed are the same under both."""
         x0 = None
         if self.ndim == 4:
-            x0 = (320.0, 240.0, _log_uniform(rng, self.size), _log_uniform(rng, self.size), 0.0, 0.0, 0.0, 0.0)
+            x0 = (320.0, 240.0, log_uniform(rng, self.size), log_uniform(rng, self.size), 0.0, 0.0, 0.0, 0.0)
         scenario = Scenario(
             psi=_uniform(rng, self.psi),
-            sigma_w=_log_uniform(rng, self.sigma_w),
-            sigma_xi=_log_uniform(rng, self.sigma_xi),
+            sigma_w=log_uniform(rng, self.sigma_w),
+            sigma_xi=log_uniform(rng, self.sigma_xi),
             tau=_uniform(rng, self.tau),
             n_frames=int(rng.integers(self.n_frames[0], self.n_frames[1], endpoint=True)),
             ndim=self.ndim,

@@ -29,6 +29,8 @@ import numpy as np
 from envs.actions import Nominal
 from envs.config import MIX_SOURCES, EnvConfig
 from envs.features import box_scale
+from envs.sim_regimes import simulate_nonstationary
+from envs.simulate import Scenario, ScenarioRanges, simulate_each
 from filters.horizon import rule_horizon
 
 if TYPE_CHECKING:
@@ -92,8 +94,6 @@ class SimSource(Source):
     from the config's ranges. Nominal σ are the geometric centres of the σ ranges."""
 
     def __init__(self, cfg: EnvConfig) -> None:
-        from envs.simulate import ScenarioRanges
-
         self.cfg = cfg
         self.ranges = ScenarioRanges(
             psi=cfg.psi_range, sigma_w=cfg.sigma_w_range, sigma_xi=cfg.sigma_xi_range, tau=cfg.tau_range,
@@ -113,10 +113,12 @@ class SimSource(Source):
     def draw_many(self, noise_seeds: list[int]) -> list[Episode]:
         """The episodes of ``noise_seeds``, simulated in one vectorised pass (:func:`envs.simulate.simulate_each`:
         each equal to drawing it alone)."""
-        from envs.simulate import simulate_each
-
+        if not noise_seeds:
+            return []
         rngs = [np.random.default_rng(seed) for seed in noise_seeds]
         scenarios = [self.ranges.sample(rng) for rng in rngs]
+        if self.cfg.scenario == "nonstationary":
+            return [self._nonstationary(seed, scenario) for seed, scenario in zip(noise_seeds, scenarios)]
         tracks = simulate_each(scenarios, rngs)
         horizons = rule_horizon(self.sigma_v_nominal, self.sigma_w_nominal, np.array([t.tau for t in tracks]), K_AXIS,
                                 max_horizon=self.cfg.horizon_max)
@@ -133,6 +135,15 @@ class SimSource(Source):
             episodes.append(Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta,
                                     scenario=truth))
         return episodes
+
+    def _nonstationary(self, seed: int, scenario: Scenario) -> Episode:
+        """The nonstationary episode of ``seed`` around its drawn ``scenario`` (:mod:`envs.sim_regimes`)."""
+        track, truth = simulate_nonstationary(scenario, seed, self.cfg.psi_range, self.cfg.sigma_xi_range)
+        horizon = rule_horizon(self.sigma_v_nominal, self.sigma_w_nominal, track.tau, K_AXIS, max_horizon=self.cfg.horizon_max)
+        nominal = Nominal(sigma_w=self.sigma_w_nominal, sigma_v=self.sigma_v_nominal, psi=self.cfg.nominal_psi,
+                          horizon=int(horizon))
+        return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal,
+                       meta={"sequence": None, "noise_seed": seed, "tau": scenario.tau}, scenario=truth)
 
 
 class OTBSource(Source):

@@ -91,7 +91,9 @@ class FilterTuneEnv(TrackEnv):
     scores, observation) a block of up to 64 unpinned episodes at once — batched over the block — and hands
     them out one per reset: the episodes, their order and every value are the same as one at a time (the
     tests check bit-identity with the pinned episode), but ``np_random`` advances a block at a time.
-    ``reset(seed=...)`` discards the prepared block; a pinned episode is prepared alone and leaves it.
+    ``reset(seed=...)`` discards the prepared block, draws the next block's noise seeds and prepares only its
+    first episode (the rest at the next reset: an evaluation loop that reseeds every episode pays for one
+    episode, not a block); a pinned episode is prepared alone and leaves the block as it is.
 
     ## Episode End
     After one step: ``terminated=True``, ``truncated=False``. ``info`` then holds, for the action and for
@@ -120,6 +122,14 @@ class FilterTuneEnv(TrackEnv):
     ignored: ``trackers`` with another source (or with ``mix_weights[2] == 0``), ``mix_weights`` other than
     the default without ``source="mix"``. Observation and action spaces do not depend on the source.
 
+    ``scenario`` (sim, and the sim part of a mix, with ``motion="cv"``): ``"stationary"`` (default) draws one ψ,
+    σ_w, σ_ξ per track; ``"nonstationary"`` keeps that draw as the first regime and adds, within the track,
+    1–3 switches of ψ and σ_ξ (redrawn from ``psi_range`` / ``sigma_xi_range``, at frames in [T/10, 9T/10)),
+    0–3 manoeuvre bursts (σ_w × 10 for 20–100 frames) and 0–2 occlusion gaps (5–30 missing frames), all at
+    random times (:mod:`envs.sim_regimes`). The schedule is revealed with the truth, in the step's
+    ``info["scenario"]`` (``regimes``, ``manoeuvres``, ``gaps``; ``psi`` / ``sigma_xi`` there are the
+    frame-weighted mean ψ and rms σ_ξ), never in the observation.
+
     >>> import gymnasium as gym, envs
     >>> env = gym.make("bboxtune/FilterTune-v0", backend="ufir_cmn", source="sim", track_length=300)
     >>> obs, info = env.reset(seed=0)
@@ -145,12 +155,16 @@ class FilterTuneEnv(TrackEnv):
       ``trackers`` (the tracker drawn per episode), the ``tracker`` reset option, ``source="mix"`` with
       ``mix_weights``, ``info["track"]["source"]`` for mix episodes, ``source.sequences`` / ``.trackers``;
       "trust the measurement" documented and tested per back end (Action Space).
+    * v0, ``scenario="nonstationary"`` (the default stationary episodes unchanged bit for bit); a reseeded reset
+      prepares one episode of its block, the rest at the next reset (the same episodes; ~27× → ~2.4× the cost
+      of an unseeded reset in ``scripts/bench_env.py``).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         super().__init__(0, render_mode=render_mode, **kwargs)
         self._rule: dict[str, Any] = {}
         self._ready: deque[tuple[Episode, dict[str, Any], np.ndarray]] = deque()  # prepared, not yet used
+        self._pending: deque[int] = deque()  # noise seeds of the current block drawn but not yet prepared
         self._estimate: np.ndarray | None = None
         self._done = True
 
@@ -158,19 +172,26 @@ class FilterTuneEnv(TrackEnv):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
         seed, options = check_reset_args(seed, options)
         block: list[tuple[Episode, dict[str, Any], np.ndarray]] = []
+        pending: list[int] = []
         with self._seeded(seed):
             if options:  # a pinned episode: prepared alone, the queue stays as it is
                 prepared = self._prepare([self._draw(options)])[0]
             elif seed is None and self._ready:
                 prepared = self._ready[0]
-            else:  # reseeded (the prepared block is stale) or none left: prepare the next block
-                block = self._prepare(self.source.draw_many(self._noise_seeds(self.source.block)))
+            else:  # reseeded (the prepared block is stale) or none left: the next block
+                seeds = self._noise_seeds(self.source.block) if seed is not None or not self._pending else list(self._pending)
+                # after a reseed only the first episode is prepared (a loop that reseeds every episode pays for
+                # one); the block's other noise seeds wait and are prepared together at the next reset
+                ready = 1 if seed is not None else len(seeds)
+                block = self._prepare(self.source.draw_many(seeds[:ready]))
+                pending = seeds[ready:]
                 prepared = block[0]
         # nothing below can fail: the env changes only once the new episode is ready
         if seed is not None:
             self._ready.clear()
         if block:
             self._ready.extend(block[1:])
+            self._pending = deque(pending)
         elif not options:
             self._ready.popleft()
         self.episode, self._rule, self._obs = prepared

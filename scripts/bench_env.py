@@ -7,6 +7,7 @@ For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks)
 1. steps/s through the public API: ``env.reset(); env.step(action)`` on ``gym.make``'s wrapped env (one
    step per episode, so every step includes drawing, simulating and summarising a new track and the
    fixed-rule run it is compared with — prepared in blocks, see ``envs.tune_env``) — target >= 1,000 steps/s;
+   and, as a ratio to it, ``env.reset(seed=i); env.step(action)`` (a reseed prepares one episode, not a block);
 2. episodes/s through the batched scoring path ``env.unwrapped.score(actions)`` with ``--candidates``
    distinct actions per call (each candidate is one filtered and scored episode) — target >= 5,000;
 3. the cost of a step in runs of the filter alone (one candidate, gains cached), from the same run, as a ratio.
@@ -63,9 +64,17 @@ def main(argv: list[str] | None = None) -> None:
             env.reset()
             env.step(a)
 
+    def seeded_steps(r: int) -> None:
+        for i, a in enumerate(actions[r]):
+            env.reset(seed=r * args.episodes + i)
+            env.step(a)
+
     step_rate, step_median = rates(args.episodes, steps, args.repeat)
     print(f"{args.backend}, {args.track_length}-frame box tracks, sim source; best (median) of {args.repeat} timed blocks")
     print(f"[1] gym.make + reset + step: {step_rate:,.0f} ({step_median:,.0f}) steps/s (target >= 1,000)")
+    seeded_rate, seeded_median = rates(args.episodes, seeded_steps, args.repeat)
+    print(f"[1b] reset(seed=i) + step (a Gymnasium evaluation loop): {seeded_rate:,.0f} ({seeded_median:,.0f}) steps/s, "
+          f"{step_rate / seeded_rate:.2f}x the time of reset() + step (target <= 1.5x)")
 
     u = env.unwrapped
     rng = np.random.default_rng(args.seed)

@@ -25,6 +25,17 @@ amortised, adaptive, the trained model (named by its algorithm, e.g. ppo) and it
 (<algo>_best). All methods see the same episodes (common random numbers); global and amortised are fitted on
 train-split episodes of the evaluation env.
 
+Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by agents.retune_eval instead: raw, rule (every
+window), oneshot_oracle (the best single action for the track, with the truth), oneshot_learned (--oneshot-model
+RUN_DIR: a FilterTune-v0 run's action for the whole track, chosen seeing the whole track; left out without it) and
+oneshot_learned_online (the same model choosing from the warm-up window only), window_oracle (greedy per-window
+search with the truth, carrying the filter state), adaptive (Sage–Husa), imm (IMM over two KF tunings) and the
+trained model(s), all on the frames after the warm-up window; summary.md adds the share of the one-shot →
+per-window gap each method closes and the paired log-ratio against oneshot_learned; parameter_schedule.png shows
+test episode 0's parameters per window against its true regime switches (scenario=nonstationary).
+
+    python scripts/compare.py --model runs/ppo_retune --oneshot-model runs/ppo_oneshot --env-kwargs scenario=nonstationary
+
 Writes to --out (default RUN_DIR/compare; a new or empty folder, nothing is overwritten): results.csv (one
 row per method × episode: method, episode, sequence, tracker, rmse, success_auc, precision20, …; sequence and
 tracker empty for sim), summary.md (tables with 95 % bootstrap CIs that resample sequences — an OTB sequence or
@@ -49,13 +60,16 @@ from typing import Any
 import gymnasium as gym
 import torch
 
-from agents.baselines import GridSearch, OraclePolicy
+from agents.baselines import GridSearch, OraclePolicy, RulePolicy
 from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, key_values, nonnegative_int,
                         out_dir, positive_int, tracker_set)
 from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,
                              standard_policies)
-from agents.plots import gain_boxplot, otb_curves, trajectories
+from agents.plots import gain_boxplot, otb_curves, parameter_schedule, trajectories
 from agents.report import by_method, summary_markdown, write_results_csv
+from agents.report_retune import retune_tables
+from agents.retune_eval import (ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
+                                evaluate_retune, window_oracle)
 from agents.run_files import RunError, write_text_atomic
 from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env
 from agents.safe_load import check_env_match
@@ -63,6 +77,8 @@ from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
 from envs.config import EnvConfig
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"
+RETUNE_ENV = "bboxtune/FilterRetune-v0"
+ENVS = (ONE_STEP_ENV, RETUNE_ENV)
 MIN_TRAIN_EPISODES = 11  # AmortisedPolicy's MLP holds out ceil(10 %) for early stopping and needs >= 2 of them
 DEFAULT_EPISODES = 500  # sim / video
 DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episodes
@@ -71,7 +87,7 @@ DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episo
 def build_parser() -> ArgumentParser:
     p = ArgumentParser(prog="compare.py", description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False)
     p.add_argument("--model", type=existing_dir, required=True, metavar="RUN_DIR", help="a scripts/train.py run directory")
-    p.add_argument("--env", default=None, metavar="ID", help=f"env id (default: the run's; compare.py scores {ONE_STEP_ENV})")
+    p.add_argument("--env", default=None, metavar="ID", help=f"env id (default: the run's; one of {ENVS}, the run's kind)")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
                    help="override the run's env arguments (envs.config.EnvConfig fields, YAML values; KEY:VALUE also "
                         "accepted), e.g. source=otb track_length=100; the split is --split")
@@ -94,6 +110,9 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--global-trials", type=positive_int, default=64, help="Optuna TPE trials of the global tuner")
     p.add_argument("--oracle-budget", type=positive_int, default=300, help="first-stage candidates of the oracle's grid search")
     p.add_argument("--bootstrap", type=positive_int, default=2000, help="bootstrap resamples")
+    p.add_argument("--oneshot-model", type=existing_dir, default=None, metavar="RUN_DIR",
+                   help=f"{RETUNE_ENV} runs: a {ONE_STEP_ENV} run scored as oneshot_learned (its action for the whole "
+                        "track); without it that row is left out")
     p.add_argument("--trust-pickle", action="store_true",
                    help="accept an old run's pickled vecnormalize.pkl (pickles can run code: only for runs you trust)")
     return p
@@ -102,9 +121,10 @@ def build_parser() -> ArgumentParser:
 def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     """The env id and kwargs to evaluate in: the run's, changed by --env / --env-kwargs (checked here)."""
     env_id = args.env or cfg["env_id"]
-    if env_id != ONE_STEP_ENV:
-        flag = "--env" if args.env else "--model"
-        parser.error(f"{flag}: {args.model} would be scored on {env_id}; compare.py scores one-step tuners of {ONE_STEP_ENV}")
+    if env_id != cfg["env_id"]:
+        parser.error(f"--env {env_id}: {args.model} was trained on {cfg['env_id']}; compare.py scores a run on its own env id")
+    if args.oneshot_model is not None and env_id != RETUNE_ENV:
+        parser.error(f"--oneshot-model: only for runs of {RETUNE_ENV} (this one is of {env_id})")
     try:
         overrides = key_values("--env-kwargs", args.env_kwargs)
     except ValueError as err:
@@ -156,6 +176,63 @@ def load_learned(args: argparse.Namespace, cfg: dict[str, Any], env: gym.Env) ->
     return learned
 
 
+def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneShotLearned:
+    """``--oneshot-model``: a FilterTune-v0 run's final model, checked against a FilterTune-v0 env with the
+    evaluation's arguments (which it observes the whole track in)."""
+    cfg = load_config(args.oneshot_model)
+    if cfg["env_id"] != ONE_STEP_ENV:
+        raise RunError(f"--oneshot-model {args.oneshot_model}: trained on {cfg['env_id']}, not {ONE_STEP_ENV}")
+    try:
+        tune_env = make_env(ONE_STEP_ENV, env_kwargs, split=args.split)
+    except ENV_ERRORS as err:
+        raise RunError(f"--oneshot-model: env {ONE_STEP_ENV} {env_kwargs} cannot be built ({' '.join(str(err).split())})") from None
+    policy = SB3Policy.load(args.oneshot_model, "final", trust_pickle=args.trust_pickle)
+    check_env_match(args.oneshot_model / "model.zip", policy.model, cfg, tune_env)
+    return OneShotLearned(policy, tune_env)
+
+
+def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], env_and_kwargs: tuple[gym.Env, dict[str, Any]],
+                   episodes: list[EpisodeSpec], learned: list[SB3Policy], oneshot: OneShotLearned | None, out: Path,
+                   command: str) -> Path:
+    """The FilterRetune-v0 comparison (agents.retune_eval): results.csv, summary.md and the figures in ``out``."""
+    env, env_kwargs = env_and_kwargs
+    config = env.unwrapped.config
+    search = GridSearch(budget=args.oracle_budget)
+    online = [OneShotLearned(oneshot.policy, oneshot.tune_env, online=True)] if oneshot else []
+    methods = [Sequential(RulePolicy()), OneShotOracle(search), *([oneshot] if oneshot else []), *online,
+               window_oracle(search), *(Sequential(p) for p in learned)]
+    print(f"seed: {args.seed}\n{cfg['algo']} from {args.model}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} "
+          f"episodes, window {config.window}")
+    start = time.perf_counter()
+    result = evaluate_retune(env, methods, episodes, progress=True)
+    print(f"scored {len(result.truth_at_test)} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
+    write_results_csv(out / "results.csv", result.rows)
+    title = f"{cfg['algo']} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
+    gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
+    ex = result.example
+    shown = {k: v for k, v in ex["schedules"].items() if k in ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, cfg["algo"])}
+    parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
+    settings_md = {"command": f"`{command}`",
+                   "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})",
+                   "oneshot_learned": f"`{args.oneshot_model}` (its final model)" if oneshot else "not scored (no --oneshot-model)",
+                   "env": f"`{env_kwargs}`",
+                   "test episodes": describe_episodes(args, config.source, episodes),
+                   "scored frames": f"every frame after the warm-up window (the first {config.window}, filtered by the rule "
+                                    "for every filter method)",
+                   "oracles": f"grid of <= {search.budget} actions, then {search.rounds} local refinements, with the truth: "
+                              f"{ONESHOT_ORACLE} one action for the whole track, {WINDOW_ORACLE} greedily per window"}
+    summary = summary_markdown(result.rows, result.truth_at_test, learned=[p.name for p in learned], title=title,
+                               settings=settings_md, figures=["gain_boxplot.png", "parameter_schedule.png"],
+                               n_boot=args.bootstrap, seed=args.seed, rmse_oracle=WINDOW_ORACLE)
+    head, figures = summary.split("## Figures")
+    summary = head + "\n".join(retune_tables(result.rows, [p.name for p in learned], args.bootstrap, args.seed)) + \
+        "\n## Figures" + figures
+    write_text_atomic(out / "summary.md", summary)
+    print(summary.split("## Paired")[0])
+    print(f"wrote {out}")
+    return out
+
+
 def describe_episodes(args: argparse.Namespace, source: str, episodes: list[EpisodeSpec]) -> str:
     """The settings line of the scored episodes."""
     n = len(episodes)
@@ -178,8 +255,8 @@ def main(argv: list[str] | None = None) -> Path:
     try:  # everything that can be checked is checked before the (long) fitting and scoring
         check_free(out, "choose another --out")
         cfg = load_config(args.model)
-        if cfg["env_id"] != ONE_STEP_ENV:
-            raise RunError(f"{args.model} was trained on {cfg['env_id']}; compare.py scores one-step tuners of {ONE_STEP_ENV}")
+        if cfg["env_id"] not in ENVS:
+            raise RunError(f"{args.model} was trained on {cfg['env_id']}; compare.py scores runs of {ENVS}")
         env_id, env_kwargs = evaluation_env(parser, args, cfg)
         try:
             test_env, train_env = make_env(env_id, env_kwargs, split=args.split), make_env(env_id, env_kwargs, split="train")
@@ -188,9 +265,12 @@ def main(argv: list[str] | None = None) -> Path:
                            f"({' '.join(str(err).split())})") from None
         episodes = episode_plan(parser, args, test_env)
         learned = load_learned(args, cfg, test_env)
+        oneshot = load_oneshot(args, env_kwargs) if args.oneshot_model is not None else None
         out.mkdir(parents=True, exist_ok=True)
     except (RunError, OSError) as err:
         parser.error(str(err))
+    if env_id == RETUNE_ENV:
+        return compare_retune(args, cfg, (test_env, env_kwargs), episodes, learned, oneshot, out, command)
     config = test_env.unwrapped.config
     algo, source = cfg["algo"], config.source
     print(f"seed: {args.seed}\n{algo} from {args.model}: {env_id} {env_kwargs}, {len(episodes)} {args.split} episodes")

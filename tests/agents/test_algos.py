@@ -13,7 +13,7 @@ from agents.runs import make_vec
 from .conftest import ENV_ID, SHORT
 
 SMALL = {"ppo": {"n_steps": 32, "batch_size": 64}, "a2c": {"n_steps": 8}, "sac": {"learning_starts": 64},
-         "td3": {"learning_starts": 64}}
+         "td3": {"learning_starts": 64}, "ppo_lstm": {"n_steps": 32, "batch_size": 64}}
 
 
 @pytest.mark.parametrize("algo", sorted(ALGOS))

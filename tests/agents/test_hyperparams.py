@@ -28,6 +28,7 @@ TINY: dict[str, dict[str, int]] = {
     "a2c": {"n_envs": 2, "n_steps": 16},
     "sac": {"learning_starts": 16, "batch_size": 16},
     "td3": {"learning_starts": 16, "batch_size": 16},
+    "ppo_lstm": {"n_envs": 2, "n_steps": 16, "batch_size": 32},
 }
 ENTRY = "  n_timesteps: 1000\n  policy: MlpPolicy\n"  # the keys every entry needs
 
@@ -54,7 +55,8 @@ def test_every_entry_of_every_file_loads(path: Path) -> None:
     assert "default" in entries and ENV_ID in entries
     for key in entries:
         hp = load_hyperparams(path.stem, key)
-        assert hp.n_timesteps > 0 and hp.n_envs >= 1 and hp.policy == "MlpPolicy" and hp.vec_env == data["vec_env"]
+        assert hp.n_timesteps > 0 and hp.n_envs >= 1 and hp.vec_env == data["vec_env"]
+        assert hp.policy == ("MlpLstmPolicy" if path.stem == "ppo_lstm" else "MlpPolicy")
         assert hp.normalize == {"norm_obs": True, "norm_reward": False}
 
 

@@ -29,7 +29,7 @@ from agents.safe_load import check_env_match, load_model, stamp
 
 from .conftest import ENV_ID, SHORT
 
-SMALL = {"ppo": {"n_steps": 16, "batch_size": 16}, "a2c": {"n_steps": 8}, "sac": {"buffer_size": 256},
+SMALL = {"ppo": {"n_steps": 16, "batch_size": 16}, "ppo_lstm": {"n_steps": 16, "batch_size": 16}, "a2c": {"n_steps": 8}, "sac": {"buffer_size": 256},
          "td3": {"buffer_size": 256}}
 
 
@@ -104,7 +104,8 @@ def test_no_serialized_entry_of_model_zip_is_unpickled(algo: str, tmp_path: Path
     model = load_model(path, cfg, venv_of(cfg))
     assert not marker.exists()
     assert model.observation_space.shape == (20,) and model.action_space.shape == (2,)
-    assert type(model.policy).__name__ == type(algo_class(algo)("MlpPolicy", venv_of(cfg), device="cpu").policy).__name__
+    policy = load_hyperparams(algo, ENV_ID).policy  # MlpPolicy; MlpLstmPolicy for ppo_lstm
+    assert type(model.policy).__name__ == type(algo_class(algo)(policy, venv_of(cfg), device="cpu").policy).__name__
     naive(algo_class(algo).load, path, device="cpu")  # positive control: SB3's own loader runs the plant
     assert marker.exists()
 

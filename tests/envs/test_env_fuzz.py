@@ -22,7 +22,8 @@ NUMBER = st.one_of(st.integers(-10, 200_000), st.floats(-10.0, 1e5), st.floats(a
                    st.integers(-(2**70), 2**70), st.sampled_from([10**400, -(10**400)]), st.sampled_from([np.int64(64), np.float32(0.5), np.float64(1e-3), True]))
 GARBAGE = st.one_of(
     st.none(), NUMBER, st.text(max_size=6), st.binary(max_size=3),
-    st.sampled_from(["sim", "100", "1e3", "rgb_array", "ufir_cmn", "kf", "psi", "train", "SiamFC", "regions", "rmse"]),
+    st.sampled_from(["sim", "100", "1e3", "rgb_array", "ufir_cmn", "kf", "psi", "train", "SiamFC", "regions", "rmse",
+                    "nonstationary", "stationary"]),
     st.lists(st.one_of(NUMBER, st.text(max_size=3), st.sampled_from(["psi", "horizon", "sigma_w"])), max_size=4),
     st.tuples(NUMBER, NUMBER), st.tuples(st.floats(0.0, 2.0), st.floats(0.0, 2.0)),
     st.dictionaries(st.text(max_size=2), st.integers(), max_size=2),

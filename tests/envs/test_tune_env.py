@@ -68,6 +68,22 @@ def test_episode_sequence_does_not_depend_on_blocks_and_reseeding_restarts_it() 
     assert env.reset(seed=8)[1]["track"]["noise_seed"] == seeds[0]  # reseeding drops the prepared episodes
 
 
+def test_a_reseeded_reset_prepares_one_episode_and_the_rest_of_its_block_later(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An evaluation loop that calls reset(seed=i) before every episode pays for one episode, not a block of 64;
+    the episodes stay those of the block (test above)."""
+    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+    base = env.unwrapped
+    sizes: list[int] = []
+    prepare = base._prepare
+    monkeypatch.setattr(base, "_prepare", lambda episodes: sizes.append(len(episodes)) or prepare(episodes))
+    for i in range(3):
+        env.reset(seed=i)
+    first = env.reset()[1]["track"]["noise_seed"]
+    rng = np.random.default_rng(2)
+    rng.integers(2**62)
+    assert sizes == [1, 1, 1, base.source.block - 1] and first == int(rng.integers(2**62))
+
+
 def test_noise_seed_pins_the_episode() -> None:
     env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
     a, _ = env.reset(seed=1, options={"noise_seed": 77})

@@ -48,7 +48,8 @@ COMPARE = [
     misuse("--model", "{dir}", mentions="{dir} is not a train.py run directory"),
     misuse("--model", "{bad_config}", mentions="{bad_config}/config.yml:2:"),
     misuse("--model", "{no_model}", mentions="{no_model}/model.zip not found"),
-    misuse("--model", "{retune}", mentions="bboxtune/FilterRetune-v0"),
+    misuse("--model", "{retune}", mentions="{retune}/model.zip not found"),  # FilterRetune-v0 runs are scored too
+    misuse("--model", "{run}", "--oneshot-model", "{run}", mentions="--oneshot-model: only for runs of bboxtune/FilterRetune-v0"),
     misuse("--model", "{kf_config}", mentions="{kf_config}/model.zip was trained on"),
     *[misuse("--model", "{run}", flag, v) for flag in ("--episodes", "--global-trials", "--oracle-budget", "--bootstrap")
       for v in COUNT],

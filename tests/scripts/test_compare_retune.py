@@ -1,0 +1,55 @@
+"""scripts/compare.py on a tiny FilterRetune-v0 run (scenario "nonstationary"): the re-tuning methods, one row per
+method × episode, the gap table, the parameter-schedule figure, and --oneshot-model's checks."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pytest
+
+from .tiny_run import TINY, load_script, tiny_run, train  # noqa: F401  (fixtures)
+
+METHODS = {"raw", "rule", "oneshot_oracle", "oneshot_learned", "oneshot_learned_online", "window_oracle", "adaptive", "imm", "ppo",
+           "ppo_best"}
+EPISODES = 4
+NONSTATIONARY = ["--env-kwargs", "track_length:100", "scenario:nonstationary"]
+
+
+def _tiny(*extra: str) -> list[str]:
+    i = TINY.index("--env-kwargs")
+    return [*TINY[:i], *TINY[i + 2:], *NONSTATIONARY, *extra]
+
+
+@pytest.fixture(scope="module")
+def runs(train, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:  # noqa: F811
+    root = tmp_path_factory.mktemp("retune_runs")
+    retune = train.main([*_tiny("--env", "bboxtune/FilterRetune-v0", "--env-kwargs", "window:40"), "--out", str(root / "rt")])
+    oneshot = train.main([*_tiny(), "--out", str(root / "os")])
+    return retune, oneshot
+
+
+def test_compare_scores_a_retune_run_against_every_baseline(runs: tuple[Path, Path], tmp_path: Path) -> None:
+    retune, oneshot = runs
+    out = load_script("compare").main(["--model", str(retune), "--oneshot-model", str(oneshot), "--episodes",
+                                       str(EPISODES), "--oracle-budget", "16", "--bootstrap", "50", "--out", str(tmp_path / "c")])
+    with open(out / "results.csv") as fh:
+        table = list(csv.DictReader(fh))
+    assert {r["method"] for r in table} == METHODS and len(table) == len(METHODS) * EPISODES
+    assert {r["scored_from"] for r in table} == {"40"}
+    for e in range(EPISODES):
+        by = {r["method"]: r for r in table if int(r["episode"]) == e}
+        assert float(by["rule"]["log_ratio"]) == 0.0
+        assert float(by["oneshot_oracle"]["rmse"]) <= float(by["rule"]["rmse"]) + 1e-9
+    summary = (out / "summary.md").read_text()
+    assert "## Re-tuning: the one-shot → per-window gap" in summary and "Paired: sequential against oneshot_learned" in summary
+    assert "oneshot_learned: `" in summary and (out / "parameter_schedule.png").stat().st_size > 0
+
+
+def test_oneshot_model_must_be_a_one_step_run(runs: tuple[Path, Path], tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    retune, _ = runs
+    with pytest.raises(SystemExit) as exc:
+        load_script("compare").main(["--model", str(retune), "--oneshot-model", str(retune), "--out", str(tmp_path / "c")])
+    assert exc.value.code == 2
+    assert "--oneshot-model" in capsys.readouterr().err and not (tmp_path / "c").exists()
