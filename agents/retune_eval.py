@@ -122,12 +122,13 @@ class OneShotLearned(OneShot):
 
     def choose(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
         base = env.unwrapped
-        meta = base.episode.meta
-        options = {k: meta[k] for k in ("noise_seed", "sequence", "tracker") if meta.get(k) not in (None, "")}
-        tune_obs, _ = self.tune_env.reset(options=options)
-        if self.online:
-            ep, seen = base.episode, base.window_start
+        ep = base.episode
+        if self.online:  # the FilterTune-v0 features of the frames seen so far; no whole-track episode needed
+            seen = base.window_start
             tune_obs = measurement_features(ep.y[:seen], ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, base.rule_estimates[:seen])
+        else:
+            options = {k: ep.meta[k] for k in ("noise_seed", "sequence", "tracker") if ep.meta.get(k) not in (None, "")}
+            tune_obs, _ = self.tune_env.reset(options=options)
         self.policy.begin_episode()
         return self.policy.act(tune_obs, self.tune_env)
 
