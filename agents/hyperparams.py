@@ -14,7 +14,9 @@ Nothing is ``eval``'d: the string forms of ``policy_kwargs`` and ``normalize`` t
 |----------------------|--------------------------------------------------|----------------------------------------------|
 | ``n_timesteps``      | int                                              | default ``--timesteps`` of ``train.py``      |
 | ``n_envs``           | int                                              | default ``--n-envs``                         |
-| ``vec_env``          | ``dummy`` or ``subproc`` (top level or override) | DummyVecEnv / SubprocVecEnv                  |
+| ``vec_env``          | ``batched``, ``subproc`` or ``dummy`` (top level | ``agents.batched.TuneVecEnv`` (one process,  |
+|                      | or override); a file's ``batched`` means         | all envs in one batch; FilterTune-v0 only) / |
+|                      | ``subproc`` for env ids without a batched form   | SubprocVecEnv / DummyVecEnv                  |
 | ``normalize``        | bool or mapping of VecNormalize kwargs           | ``VecNormalize(**kwargs)`` (true: obs only)  |
 | ``policy``           | str (``MlpPolicy``)                              | policy                                       |
 | ``learning_rate``, ``clip_range`` | float or ``lin_<float>``            | constant, or linear decay to 0 (``LinearSchedule``) |
@@ -39,10 +41,11 @@ from stable_baselines3.common.utils import LinearSchedule
 
 from agents import cli
 from agents.algos import algo_class
+from envs.vector import BATCHED_IDS
 
 HYPERPARAMS_DIR = Path(__file__).with_name("hyperparams")
 ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}
-VEC_ENVS = ("dummy", "subproc")
+VEC_ENVS = ("batched", "subproc", "dummy")
 FILE_KEYS = ("vec_env",)  # top-level settings of a file, read by this loader only
 ZOO_REQUIRED = ("n_timesteps", "policy")  # the zoo's KeyError / TypeError without them
 _SCHEDULED = ("learning_rate", "clip_range")
@@ -56,7 +59,7 @@ class Hyperparams:
     env_id: str
     n_timesteps: int  # default total environment steps
     n_envs: int  # parallel envs
-    vec_env: str  # "dummy" | "subproc"
+    vec_env: str  # "batched" | "subproc" | "dummy"
     normalize: dict[str, Any]  # VecNormalize kwargs; empty: no VecNormalize
     policy: str
     raw: dict[str, Any]  # the merged YAML entry as read (for config.yml)
@@ -134,6 +137,10 @@ def load_hyperparams(algo: str, env_id: str, overrides: dict[str, Any] | None = 
     vec_env = entry.pop("vec_env", "dummy")
     if vec_env not in VEC_ENVS:
         raise ValueError(f"{where}: vec_env={vec_env!r}; allowed: {VEC_ENVS}")
+    if vec_env == "batched" and env_id not in BATCHED_IDS:
+        if "vec_env" in (overrides or {}):
+            raise ValueError(f"{where}: vec_env='batched' exists for {BATCHED_IDS} only; allowed here: 'subproc', 'dummy'")
+        vec_env = "subproc"  # the file's default where the env has no batched form
     normalize = entry.pop("normalize", False)
     if normalize is True:
         normalize = {"norm_obs": True, "norm_reward": False}

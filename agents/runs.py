@@ -36,11 +36,13 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 import envs  # noqa: F401  (registers the env ids)
 from agents.algos import ALGOS, RECURRENT
 from agents.baselines import ObsPolicy
+from agents.batched import TuneVecEnv
 from agents.cli import read_yaml
 from agents.hyperparams import load_hyperparams
 from agents.run_files import RunError, load_normalizer
 from agents.safe_load import load_model
-from agents.splits import SplitSeeds
+from agents.splits import SplitSeeds, train_seeds
+from envs.vector import BATCHED_IDS, TuneBatch
 
 CONFIG = "config.yml"
 LOCK = "train.lock"
@@ -58,10 +60,17 @@ def make_env(env_id: str, env_kwargs: dict[str, Any], split: str = "test") -> gy
 
 def make_vec(env_id: str, env_kwargs: dict[str, Any], *, split: str, n_envs: int, seed: int,
              vec_env: str = "dummy", cycle: int = 100) -> VecEnv:
-    """``n_envs`` Monitor-wrapped envs of ``split`` (noise seeds of that split, the env's ``split=`` for OTB
-    sequences; reset seeds ``seed + rank``), Dummy- or SubprocVecEnv."""
+    """``n_envs`` envs of ``split`` (noise seeds of that split, the env's ``split=`` for OTB sequences):
+    ``vec_env="batched"`` (train split of FilterTune-v0 only) one :class:`agents.batched.TuneVecEnv` seeded
+    with ``seed`` (its infos carry Monitor's ``episode``); ``"dummy"`` / ``"subproc"`` Monitor-wrapped envs with reset seeds
+    ``seed + rank`` in a Dummy- or SubprocVecEnv."""
+    kwargs = {**env_kwargs, "split": split}
+    if vec_env == "batched":
+        if split != "train" or env_id not in BATCHED_IDS:
+            raise ValueError(f"vec_env='batched' serves the train split of {BATCHED_IDS}, not split={split!r} of {env_id!r}")
+        return TuneVecEnv(TuneBatch(n_envs, train_seeds, **kwargs), seed=seed)
     cls = SubprocVecEnv if vec_env == "subproc" else DummyVecEnv
-    return make_vec_env(partial(_registered_make, env_id), n_envs=n_envs, seed=seed, env_kwargs={**env_kwargs, "split": split}, vec_env_cls=cls,
+    return make_vec_env(partial(_registered_make, env_id), n_envs=n_envs, seed=seed, env_kwargs=kwargs, vec_env_cls=cls,
                         wrapper_class=SplitSeeds, wrapper_kwargs={"split": split, "cycle": cycle})
 
 

@@ -19,6 +19,7 @@ anything further out, NaN or ±inf raises ``ValueError``; so does a wrong shape 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -115,16 +116,23 @@ class ActionMap:
                              "(score() takes batches)")
         return self.check(action)
 
-    def to_params(self, actions: np.ndarray, nominal: Nominal) -> dict[str, np.ndarray]:
-        """Actions (d,) or (A, d) → {name: array (A,)} for every parameter in ``TUNABLE``
-        (untuned ones at their nominal values)."""
+    def to_params(self, actions: np.ndarray, nominal: Nominal | Sequence[Nominal]) -> dict[str, np.ndarray]:
+        """Actions (d,) or (A, d) → {name: array (A,)} for every parameter in ``TUNABLE`` (untuned ones at their
+        nominal values); ``nominal`` one for every row, or a sequence of A, row a's for action a (a batch of
+        episodes)."""
         a = self.check(actions)
         n = a.shape[0]
+        if isinstance(nominal, Nominal):
+            values = {k: getattr(nominal, k) for k in TUNABLE}
+        else:
+            if len(nominal) != n:
+                raise ValueError(f"{len(nominal)} nominal parameter sets for {n} actions; allowed: one per action")
+            values = {k: np.array([getattr(x, k) for x in nominal]) for k in TUNABLE}
         out = {
-            "psi": np.full(n, nominal.psi),
-            "horizon": np.full(n, nominal.horizon, dtype=np.int64),
-            "sigma_w": np.full(n, nominal.sigma_w),
-            "sigma_v": np.full(n, nominal.sigma_v),
+            "psi": np.full(n, values["psi"], dtype=np.float64),
+            "horizon": np.full(n, values["horizon"], dtype=np.int64),
+            "sigma_w": np.full(n, values["sigma_w"], dtype=np.float64),
+            "sigma_v": np.full(n, values["sigma_v"], dtype=np.float64),
         }
         for j, name in enumerate(self.tune):
             u = (a[:, j] + 1.0) / 2.0
@@ -133,7 +141,7 @@ class ActionMap:
             elif name == "horizon":
                 out[name] = np.rint(self.K * (self.horizon_max / self.K) ** u).astype(np.int64)
             else:
-                out[name] = getattr(nominal, name) * 10.0 ** (self.sigma_decades * a[:, j])
+                out[name] = values[name] * 10.0 ** (self.sigma_decades * a[:, j])
         return out
 
     def to_actions(self, params: dict[str, np.ndarray | float], nominal: Nominal) -> np.ndarray:

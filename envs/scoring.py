@@ -7,7 +7,6 @@ from functools import lru_cache
 import numpy as np
 
 import filters
-from filters.fir_core import FIRFilter
 from envs import metrics
 from envs.actions import ACCEPTS
 
@@ -21,12 +20,12 @@ def box_model(tau: float) -> filters.StateSpaceModel:
 
 
 def _in_frames(backend: str, tau: np.ndarray, params: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The frame intervals and parameters to run ``backend`` with: FIR back ends are exact in frame units
-    (σ_w → σ_w τ², :meth:`filters.fir_core.FIRFilter.params_in_frames`), so they run at τ = 1 whatever
-    the tracks' τ (one cached model, one batched call); the Kalman family keeps τ."""
+    """The frame intervals and parameters to run ``backend`` with: back ends exact in frame units (FIR family,
+    KF, KF-CMN: ``IN_FRAMES``, σ_w → σ_w τ², :meth:`filters.base.Filter.params_in_frames`) run at τ = 1
+    whatever the tracks' τ (one cached model, one batched call); the others (UKF) keep τ."""
     cls = filters.filter_class(backend)
     used = {k: np.asarray(params[k]) for k in ACCEPTS[backend]}
-    if issubclass(cls, FIRFilter):
+    if cls.IN_FRAMES:
         return np.ones_like(tau), cls.params_in_frames(used, tau)
     return tau, used
 
@@ -118,6 +117,19 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
         "precision20": within.sum(axis=1) / n,
         "iou_precision": iou_precision,
     }
+
+
+def score_tracks(estimates: list[np.ndarray], truths: list[np.ndarray]) -> dict[str, np.ndarray]:
+    """:func:`score_estimates` of B tracks, each estimate (T_b, 4) against its own truth (T_b, 4): one call per
+    track length; each value (B,), row b equal to scoring track b alone."""
+    lengths = np.array([len(t) for t in truths])
+    out = {k: np.empty(len(truths)) for k in SCORE_KEYS}
+    for T in np.unique(lengths):
+        rows = np.flatnonzero(lengths == T)
+        scores = score_estimates(np.stack([estimates[r] for r in rows]), np.stack([truths[r] for r in rows]))
+        for k in SCORE_KEYS:
+            out[k][rows] = scores[k]
+    return out
 
 
 def reward_from(scores: dict[str, np.ndarray], rule: dict[str, float], kind: str) -> np.ndarray:

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from envs.features import measurement_features
-from envs.scoring import SCORE_KEYS, reward_from, run_positions, run_tracks, score_estimates
+from envs.scoring import SCORE_KEYS, reward_from, run_positions, run_tracks, score_estimates, score_tracks
 from envs.sources import Episode
 from envs.track_env import TrackEnv, check_reset_args
 
@@ -90,7 +90,9 @@ class FilterTuneEnv(TrackEnv):
     options replays it. For speed the ``sim`` source draws and prepares (simulation, rule run, rule
     scores, observation) a block of up to 64 unpinned episodes at once — batched over the block — and hands
     them out one per reset: the episodes, their order and every value are the same as one at a time (the
-    tests check bit-identity with the pinned episode), but ``np_random`` advances a block at a time.
+    tests check bit-identity with the pinned episode for the FIR family; the Kalman family's batched matrix
+    products round differently in batches of other widths, so its values agree to ~1e-15 relative), but
+    ``np_random`` advances a block at a time.
     ``reset(seed=...)`` discards the prepared block, draws the next block's noise seeds and prepares only its
     first episode (the rest at the next reset: an evaluation loop that reseeds every episode pays for one
     episode, not a block); a pinned episode is prepared alone and leaves the block as it is.
@@ -175,7 +177,7 @@ class FilterTuneEnv(TrackEnv):
         pending: list[int] = []
         with self._seeded(seed):
             if options:  # a pinned episode: prepared alone, the queue stays as it is
-                prepared = self._prepare([self._draw(options)])[0]
+                prepared = self.prepare([self._draw(options)])[0]
             elif seed is None and self._ready:
                 prepared = self._ready[0]
             else:  # reseeded (the prepared block is stale) or none left: the next block
@@ -183,7 +185,7 @@ class FilterTuneEnv(TrackEnv):
                 # after a reseed only the first episode is prepared (a loop that reseeds every episode pays for
                 # one); the block's other noise seeds wait and are prepared together at the next reset
                 ready = 1 if seed is not None else len(seeds)
-                block = self._prepare(self.source.draw_many(seeds[:ready]))
+                block = self.prepare(self.source.draw_many(seeds[:ready]))
                 pending = seeds[ready:]
                 prepared = block[0]
         # nothing below can fail: the env changes only once the new episode is ready
@@ -199,23 +201,23 @@ class FilterTuneEnv(TrackEnv):
         self._done = False
         return self._obs.copy(), {"track": dict(self.episode.meta)}
 
-    def _prepare(self, episodes: list[Episode]) -> list[tuple[Episode, dict[str, Any], np.ndarray]]:
+    def prepare(self, episodes: list[Episode]) -> list[tuple[Episode, dict[str, Any], np.ndarray]]:
         """Each episode with its fixed-rule run (parameters, estimate, scores) and its observation — batched
         over episodes of equal length (the rule's filter runs, its scores and the features)."""
         rule_params = [self.rule_params(ep) for ep in episodes]
         stacked = {k: np.concatenate([p[k] for p in rule_params]) for k in rule_params[0]}
         estimates = run_tracks(self.config.backend, [ep.y for ep in episodes], [ep.tau for ep in episodes], stacked)
+        scores = score_tracks(estimates, [ep.truth for ep in episodes])
         out: list[tuple[Episode, dict[str, Any], np.ndarray]] = [None] * len(episodes)  # type: ignore[list-item]
         lengths = np.array([len(ep.y) for ep in episodes])
-        for T in np.unique(lengths):
+        for T in np.unique(lengths):  # the features of equal-length tracks in one call
             rows = np.flatnonzero(lengths == T)
-            est = np.stack([estimates[r] for r in rows])
-            scores = score_estimates(est, np.stack([episodes[r].truth for r in rows]))
             nominal = [episodes[r].nominal for r in rows]
             obs = measurement_features(np.stack([episodes[r].y for r in rows]), [episodes[r].tau for r in rows],
-                                       [n.sigma_v for n in nominal], [n.sigma_w for n in nominal], est)
+                                       [n.sigma_v for n in nominal], [n.sigma_w for n in nominal],
+                                       np.stack([estimates[r] for r in rows]))
             for i, r in enumerate(rows):
-                rule = {"params": rule_params[r], "estimate": est[i], "scores": {k: float(v[i]) for k, v in scores.items()}}
+                rule = {"params": rule_params[r], "estimate": estimates[r], "scores": {k: float(v[r]) for k, v in scores.items()}}
                 out[r] = (episodes[r], rule, obs[i])
         return out
 
@@ -238,18 +240,21 @@ class FilterTuneEnv(TrackEnv):
         result = self.score(self.action_map.check_one(action))
         self._estimate = result["estimates"][0]
         self._done = True
-        info = self._info(result)
+        info = self.step_info(result)
         return self._obs.copy(), float(result["reward"][0]), True, False, info
 
-    def _info(self, result: dict[str, Any]) -> dict[str, Any]:
-        rule = self._rule
-        info: dict[str, Any] = {k: float(result[k][0]) for k in SCORE_KEYS}
+    def step_info(self, result: dict[str, Any], row: int = 0, prepared: tuple[Episode, dict[str, Any]] | None = None
+                  ) -> dict[str, Any]:
+        """The step's ``info`` for candidate ``row`` of ``result`` (:meth:`score`'s keys) on the current episode
+        or on ``prepared`` = (episode, rule run) (a batch of episodes, :mod:`envs.vector`)."""
+        episode, rule = prepared or (self.episode, self._rule)
+        info: dict[str, Any] = {k: float(result[k][row]) for k in SCORE_KEYS}
         info.update({f"rule_{k}": rule["scores"][k] for k in SCORE_KEYS})
-        info["n_frames"] = int(len(self.episode.y))
-        info["params"] = self.physical(result["params"])
+        info["n_frames"] = int(len(episode.y))
+        info["params"] = self.physical(result["params"], row)
         info["rule_params"] = self.physical(rule["params"])
-        info["track"] = dict(self.episode.meta)
-        info["scenario"] = dict(self.episode.scenario)  # the truth, now that the decision is made
+        info["track"] = dict(episode.meta)
+        info["scenario"] = dict(episode.scenario)  # the truth, now that the decision is made
         return info
 
     def render(self) -> np.ndarray | None:

@@ -109,6 +109,17 @@ class Filter(ABC):
     name: ClassVar[str]
     DEFAULTS: ClassVar[dict[str, Any]]  # every accepted parameter and its default
     PER_TRACK: ClassVar[tuple[str, ...]]  # parameters that may be scalars or (B,) arrays, one per track
+    IN_FRAMES: ClassVar[bool] = False  # exact in frame units: tracks of any τ run as one batch at τ = 1
+
+    @classmethod
+    def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
+        """``params`` with every time-dependent quantity in frame units, for a run at τ = 1 that gives the
+        same positions (velocities come out in units per frame, × τ): σ_w → σ_w τ², since the state [p, v τ]
+        has ``B = τ² [1/2, 1]ᵀ``; ``tau`` a scalar or per track (B,). Exact (to round-off) for the back ends
+        with ``IN_FRAMES``; those with further such parameters (a prior) extend this."""
+        if "sigma_w" not in params:  # a partial set (the defaults are filled in later)
+            return dict(params)
+        return {**params, "sigma_w": np.asarray(params["sigma_w"]) * np.asarray(tau) ** 2}
 
     def __init__(self, model: StateSpaceModel, **params: Any) -> None:
         unknown = sorted(set(params) - set(self.DEFAULTS))

@@ -108,6 +108,7 @@ class FIRFilter(Filter):
     depends on (channels are grouped by them); empty means all of ``PER_TRACK``.
     """
 
+    IN_FRAMES: ClassVar[bool] = True
     EXTRA_SAMPLES: ClassVar[int] = 0  # raw window length L = N + EXTRA_SAMPLES (1 for UFIR-CMN)
     GAIN_PARAMS: ClassVar[tuple[str, ...]] = ()
 
@@ -151,15 +152,6 @@ class FIRFilter(Filter):
         twin.model = constant_velocity(1.0, ndim=self.model.ndim)
         twin.params = self.params_in_frames(self.params, self.model.tau)
         return twin
-
-    @classmethod
-    def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
-        """``params`` with every time-dependent quantity converted to frame units (σ_w → σ_w τ²; ``tau`` a
-        scalar or per track (B,)); back ends with further such parameters (OFIR's prior covariance) extend
-        this."""
-        if "sigma_w" not in params:  # a partial set (the defaults are filled in later)
-            return dict(params)
-        return {**params, "sigma_w": np.asarray(params["sigma_w"]) * np.asarray(tau) ** 2}
 
     def _run_frames(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:
         C, T = z.shape

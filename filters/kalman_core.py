@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -353,3 +354,23 @@ def check_prior(x0: object, P0: object, K: int, M: int, sigma_v: np.ndarray,
             raise ValueError(f"P0 has eigenvalue {low:.3g} < 0; allowed: a symmetric positive semi-definite matrix")
         check_prior_scale(split_covariance(P, M), sigma_v, tau)
     return x, P
+
+
+def prior_in_frames(params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
+    """``params`` whose prior ``x0`` (K,) / ``P0`` (K, K) of the state [positions, velocities] becomes that of
+    [positions, velocities τ] (the frame-unit state of :meth:`filters.base.Filter.params_in_frames`); one prior
+    serves all tracks, so ``tau`` must then be a scalar."""
+    x0, P0 = params.get("x0"), params.get("P0")
+    if x0 is None and P0 is None:
+        return params
+    if np.ndim(tau) != 0:
+        raise ValueError(f"tau has shape {np.shape(tau)} but x0/P0 is one prior for all tracks; allowed: a scalar tau")
+    K = len(x0) if x0 is not None else len(P0)
+    scale = np.concatenate([np.ones(K // 2), np.full(K // 2, float(tau))])
+    out = dict(params)
+    if x0 is not None:
+        out["x0"] = np.asarray(x0, dtype=float) * scale
+    if P0 is not None:
+        out["P0"] = np.asarray(P0, dtype=float) * np.outer(scale, scale)
+    return out
+

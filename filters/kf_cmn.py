@@ -47,7 +47,7 @@ import numpy as np
 from filters.base import AxisCarry, Filter
 from filters.model import StateSpaceModel
 from filters.kalman_core import (UPDATE_Z, StepTables, channel_start, check_prior, filter_channels, frame_kinds,
-                                 plain_tables)
+                                 plain_tables, prior_in_frames)
 from filters.validation import check_sigma, check_psi
 
 
@@ -59,6 +59,13 @@ class KFCMN(Filter):
     name: ClassVar[str] = "kf_cmn"
     DEFAULTS: ClassVar[dict[str, Any]] = {"sigma_w": 1.0, "sigma_v": 1.0, "psi": 0.0, "x0": None, "P0": None}
     PER_TRACK: ClassVar[tuple[str, ...]] = ("sigma_w", "sigma_v", "psi")
+
+    IN_FRAMES: ClassVar[bool] = True
+
+    @classmethod
+    def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
+        """As :meth:`filters.base.Filter.params_in_frames`, with the prior's velocities in units per frame."""
+        return prior_in_frames(super().params_in_frames(params, tau), tau)
 
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
         sigma_v = check_sigma("sigma_v", params["sigma_v"])

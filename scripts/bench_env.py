@@ -10,7 +10,10 @@ For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks)
    and, as a ratio to it, ``env.reset(seed=i); env.step(action)`` (a reseed prepares one episode, not a block);
 2. episodes/s through the batched scoring path ``env.unwrapped.score(actions)`` with ``--candidates``
    distinct actions per call (each candidate is one filtered and scored episode) — target >= 5,000;
-3. the cost of a step in runs of the filter alone (one candidate, gains cached), from the same run, as a ratio.
+3. the cost of a step in runs of the filter alone (one candidate, gains cached), from the same run, as a ratio;
+4. env steps/s of the batched vec env (``agents.batched.TuneVecEnv``, ``--n-envs`` tracks per step, what
+   ``train.py`` trains on; targets >= 20,000 for ufir_cmn, >= 10,000 for kf_cmn), as a ratio to [1] and to
+   filterpy's ``KalmanFilter`` loop running the same tracks (``--filterpy-tracks`` of them; tracks/s).
 
 Rates are the best of ``--repeat`` timed blocks (the machine is shared; the best block is the least
 disturbed), with the median in parentheses. Every block draws fresh random actions, so no filter gain comes from the cache of an earlier
@@ -27,6 +30,8 @@ import numpy as np
 import envs  # noqa: F401  (registers the environments)
 import filters
 from agents.cli import ArgumentParser, argument_errors, nonnegative_int, positive_int
+from agents.runs import make_vec
+from bench_filters import filterpy_loop
 from envs.config import EnvConfig
 
 
@@ -48,6 +53,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--calls", type=positive_int, default=10, help="score() calls per timed block")
     ap.add_argument("--track-length", type=positive_int, default=500, help="frames per track (the env's limits)")
     ap.add_argument("--repeat", type=positive_int, default=5, help="timed blocks per measurement")
+    ap.add_argument("--n-envs", type=positive_int, default=256, help="envs of the batched vec env [4]")
+    ap.add_argument("--vec-steps", type=positive_int, default=8, help="batched vec env steps per timed block [4]")
+    ap.add_argument("--filterpy-tracks", type=positive_int, default=16, help="tracks filterpy filters per timed block [4]")
     ap.add_argument("--seed", type=nonnegative_int, default=0)
     args = ap.parse_args(argv)
     with argument_errors(ap, "--track-length"):
@@ -98,6 +106,34 @@ def main(argv: list[str] | None = None) -> None:
                            args.repeat)
     print(f"[3] the filter alone (one candidate, its gains cached): {filter_rate:,.0f} runs/s; a step costs "
           f"{filter_rate / step_rate:.1f} filter runs (a step includes a rule run, the simulation, features, scoring)")
+
+    vec_rate, vec_median, filterpy_rate = batched_rates(args)
+    target = {"ufir_cmn": 20_000, "kf_cmn": 10_000}.get(args.backend)
+    print(f"[4] batched vec env, {args.n_envs} envs: {vec_rate:,.0f} ({vec_median:,.0f}) env steps/s"
+          + (f" (target >= {target:,})" if target else "") + f"; {vec_rate / step_rate:.1f}x [1]; filterpy KalmanFilter "
+          f"loop on the same tracks: {filterpy_rate:,.1f} tracks/s (batched env steps/s: {vec_rate / filterpy_rate:,.0f}x that)")
+
+
+def batched_rates(args) -> tuple[float, float, float]:
+    """[4]: (best, median) env steps/s of the batched vec env and filterpy's tracks/s on its tracks."""
+    venv = make_vec("bboxtune/FilterTune-v0", {"backend": args.backend, "track_length": args.track_length},
+                    split="train", n_envs=args.n_envs, seed=args.seed, vec_env="batched")
+    venv.reset()
+    rng = np.random.default_rng(args.seed)
+    actions = rng.uniform(-1, 1, (args.repeat, args.vec_steps, args.n_envs, venv.action_space.shape[0])).astype(np.float32)
+
+    def vec_steps(r: int) -> None:
+        for a in actions[r]:
+            venv.step(a)
+
+    best, median = rates(args.vec_steps * args.n_envs, vec_steps, args.repeat)
+    episodes = [p[0] for p in venv.batch.prepared[:args.filterpy_tracks]]
+    y = np.stack([ep.y for ep in episodes])
+    model = filters.constant_velocity(float(episodes[0].tau), ndim=4)  # filterpy's cost does not depend on τ
+    nominal = episodes[0].nominal
+    x0, P0 = np.concatenate([y[0, 0], np.zeros(4)]), np.diag([nominal.sigma_v**2] * 4 + [1e6] * 4)
+    filterpy_rate, _ = rates(len(episodes), lambda r: filterpy_loop(y, model, nominal.sigma_w, nominal.sigma_v, x0, P0), 1)
+    return best, median, filterpy_rate
 
 
 if __name__ == "__main__":

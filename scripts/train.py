@@ -53,7 +53,7 @@ from agents.callbacks import AtomicCheckpoint, EpisodeLog, SaveBest, restore_eva
 from agents.checkpoints import Checkpoint, newest_complete
 from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, key_values, nonnegative_int, out_dir,
                         positive_int, tracker_set)
-from agents.hyperparams import Hyperparams, constructor_kwargs, load_hyperparams
+from agents.hyperparams import VEC_ENVS, Hyperparams, constructor_kwargs, load_hyperparams
 from agents.plots import learning_curve
 from agents.run_files import (PICKLED_REPLAY, REPLAY, STATS, RunError, atomic_write, load_normalizer,
                               load_replay_buffer, save_stats, write_text_atomic)
@@ -81,6 +81,10 @@ def build_parser() -> ArgumentParser:
                         "default the run's previous target")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the model, the envs and the train split")
     p.add_argument("--n-envs", type=positive_int, default=None, help="parallel training envs (default: the YAML's n_envs)")
+    p.add_argument("--vec", choices=VEC_ENVS, default=None,
+                   help="how the training envs run: batched (FilterTune-v0: all in one vectorised batch, this process), "
+                        "subproc (one process each) or dummy (one after another, this process); default: the YAML's "
+                        "vec_env (ppo: batched where the env has it, else subproc)")
     p.add_argument("--out", type=out_dir, default=None,
                    help="run directory, new or empty (default runs/<algo>_<backend>_<source>_s<seed>)")
     p.add_argument("--resume", type=existing_dir, default=None, metavar="DIR",
@@ -144,7 +148,10 @@ def _key_values(p: ArgumentParser, flag: str, items: list[str]) -> dict[str, Any
 
 
 def new_config(args: argparse.Namespace) -> dict[str, Any]:
-    overrides = {**args.hyperparams, **({"n_envs": args.n_envs} if args.n_envs else {})}
+    if args.vec is not None and "vec_env" in args.hyperparams:
+        raise RunError("--vec: given twice (also in --hyperparams vec_env:...)")
+    overrides = {**args.hyperparams, **({"n_envs": args.n_envs} if args.n_envs else {}),
+                 **({"vec_env": args.vec} if args.vec else {})}
     try:
         hp = load_hyperparams(args.algo, args.env, overrides)
     except ValueError as err:  # names the YAML file and the key
@@ -171,7 +178,7 @@ def hyperparams_of(cfg: dict[str, Any], where: str) -> Hyperparams:
 
 def validated_envs(cfg: dict[str, Any], hp: Hyperparams, where: str) -> VecEnv:
     """What the worker processes will build, built here first: one env of the train and of the val split (each
-    reset once) and the ``n_envs`` training envs (in this process, DummyVecEnv), which are returned.
+    reset once) and the ``n_envs`` training envs (in this process: batched or DummyVecEnv), which are returned.
     :class:`RunError` naming ``where`` (the flags or the config file) if any of it fails."""
     env_id, kwargs = cfg["env_id"], cfg["env_kwargs"]
     try:
@@ -179,7 +186,8 @@ def validated_envs(cfg: dict[str, Any], hp: Hyperparams, where: str) -> VecEnv:
             env = make_env(env_id, kwargs, split=split)
             env.reset(seed=int(cfg["seed"]))
             env.close()
-        return make_vec(env_id, kwargs, split="train", n_envs=hp.n_envs, seed=int(cfg["seed"]))
+        return make_vec(env_id, kwargs, split="train", n_envs=hp.n_envs, seed=int(cfg["seed"]),
+                        vec_env="batched" if hp.vec_env == "batched" else "dummy")
     except ENV_ERRORS as err:
         why = " ".join(str(err).split()).split(" was raised from the environment creator")[0]  # gymnasium's suffix
         raise RunError(f"{where}: env {env_id} with {kwargs}: {why}") from None

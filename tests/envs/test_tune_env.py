@@ -54,8 +54,13 @@ def test_an_episode_prepared_in_a_block_equals_the_same_episode_pinned(backend: 
         _, reward, *_, step_info = env.step(action)
         pinned, _ = env.reset(options={"noise_seed": info["track"]["noise_seed"]})
         _, pinned_reward, *_, pinned_info = env.step(action)
-        np.testing.assert_array_equal(obs, pinned)  # bit-identical: episodes are pure functions of their seed
-        assert (reward, step_info["rule_rmse"]) == (pinned_reward, pinned_info["rule_rmse"])
+        if backend == "kf_cmn":  # the Kalman family's BLAS products round differently in batches of other widths
+            np.testing.assert_allclose(obs, pinned, rtol=1e-6)  # float32 features of estimates equal to ~1e-15
+            np.testing.assert_allclose([reward, step_info["rule_rmse"]], [pinned_reward, pinned_info["rule_rmse"]],
+                                       rtol=1e-12, atol=1e-12)
+        else:
+            np.testing.assert_array_equal(obs, pinned)  # bit-identical: episodes are pure functions of their seed
+            assert (reward, step_info["rule_rmse"]) == (pinned_reward, pinned_info["rule_rmse"])
 
 
 def test_episode_sequence_does_not_depend_on_blocks_and_reseeding_restarts_it() -> None:
@@ -74,8 +79,8 @@ def test_a_reseeded_reset_prepares_one_episode_and_the_rest_of_its_block_later(m
     env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
     base = env.unwrapped
     sizes: list[int] = []
-    prepare = base._prepare
-    monkeypatch.setattr(base, "_prepare", lambda episodes: sizes.append(len(episodes)) or prepare(episodes))
+    prepare = base.prepare
+    monkeypatch.setattr(base, "prepare", lambda episodes: sizes.append(len(episodes)) or prepare(episodes))
     for i in range(3):
         env.reset(seed=i)
     first = env.reset()[1]["track"]["noise_seed"]
@@ -157,7 +162,7 @@ def test_observation_uses_measurements_only() -> None:
     ep = u.episode
     from dataclasses import replace
 
-    (_, _, again), = u._prepare([replace(ep, truth=ep.truth + 1000.0, scenario={"psi": 0.0, "sigma_w": 1e3, "sigma_xi": 1.0})])
+    (_, _, again), = u.prepare([replace(ep, truth=ep.truth + 1000.0, scenario={"psi": 0.0, "sigma_w": 1e3, "sigma_xi": 1.0})])
     assert np.array_equal(again, obs)
 
 

@@ -41,3 +41,28 @@ def test_blocks_of_frames_equal_the_frame_by_frame_affine_recursion(T: int) -> N
         x = coef[n, :4].reshape(2, 2) @ x + coef[n, 4:, None] * m[n]
         want[n] = x
     np.testing.assert_allclose(kc._affine_blocks(coef, x_start, m), want, rtol=1e-12, atol=1e-10)
+
+
+@pytest.mark.parametrize("name", ["kf", "kf_cmn"])
+@pytest.mark.parametrize("prior", [False, True])
+def test_frame_units_give_the_same_estimates(name: str, prior: bool) -> None:
+    """IN_FRAMES: the run at τ = 1 with params_in_frames equals the run at τ (positions; velocities × τ), also
+    with a prior and missing frames — what lets envs batch tracks of different τ in one call."""
+    cls = filters.filter_class(name)
+    assert cls.IN_FRAMES
+    rng = np.random.default_rng(3)
+    y = np.cumsum(rng.normal(size=(3, 120, 2)), axis=1) * 2.0 + 50.0
+    y[1, 30:37] = np.nan
+    tau = 0.037
+    params = {"sigma_w": np.array([30.0, 200.0, 5.0]), "sigma_v": np.array([2.0, 3.0, 1.0])}
+    if name == "kf_cmn":
+        params["psi"] = np.array([0.3, 0.9, 0.0])
+    if prior:
+        params.update(x0=np.array([50.0, 50.0, 3.0, -2.0]), P0=np.diag([4.0, 4.0, 100.0, 100.0]))
+    at_tau = filters.make(name, filters.constant_velocity(tau, 2), **params).run(y)
+    in_frames = filters.make(name, filters.constant_velocity(1.0, 2), **cls.params_in_frames(params, tau)).run(y)
+    np.testing.assert_allclose(in_frames[..., :2], at_tau[..., :2], rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(in_frames[..., 2:], at_tau[..., 2:] * tau, rtol=1e-8, atol=1e-8)
+    if prior:
+        with pytest.raises(ValueError, match="one prior for all tracks"):
+            cls.params_in_frames(params, np.array([0.1, 0.2, 0.3]))

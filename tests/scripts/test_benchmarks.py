@@ -12,13 +12,13 @@ import pytest
 from .tiny_run import REPO, load_script
 
 
-def test_bench_env_prints_its_three_rates(capsys):
+def test_bench_env_prints_its_four_rates(capsys):
     load_script("bench_env").main(["--episodes", "4", "--calls", "1", "--candidates", "3", "--repeat", "2",
-                                   "--track-length", "60"])
+                                   "--track-length", "60", "--n-envs", "4", "--vec-steps", "2", "--filterpy-tracks", "1"])
     out = capsys.readouterr().out
-    for label in ("[1] gym.make + reset + step", "[2] batched score()", "[3] the filter alone"):
+    for label in ("[1] gym.make + reset + step", "[2] batched score()", "[3] the filter alone", "[4] batched vec env"):
         line = next(l for l in out.splitlines() if l.startswith(label))
-        assert re.search(r"[\d,]+ \([\d,]+\) (steps|episodes)/s|[\d,]+ runs/s", line), line
+        assert re.search(r"[\d,]+ \([\d,]+\) (env steps|steps|episodes)/s|[\d,]+ runs/s", line), line
 
 
 def test_bench_filters_prints_every_section(capsys):
@@ -46,3 +46,12 @@ def test_bench_filters_misuse_exits_2_with_one_line(args):
     assert done.returncode == 2, done.stderr
     assert done.stdout == "" and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "bench_filters.py: error:" in done.stderr
+
+
+def test_bench_train_times_both_runs(capsys, tmp_path):
+    load_script("bench_train").main(["--timesteps", "128", "--out", str(tmp_path / "run"), "--", "--hyperparams",
+                                     "n_steps:2", "--env-kwargs", "track_length=60"])
+    out = capsys.readouterr().out
+    assert re.search(r"\[1\] train.py, 128 steps: [\d.]+ s wall .* peak RSS [\d.]+ GB", out), out
+    assert re.search(r"\[2\] SB3 PPO on CartPole-v1, 128 steps: [\d.]+ s wall", out), out
+    assert re.search(r"train.py / CartPole: [\d.]+x", out) and (tmp_path / "run" / "model.zip").is_file()

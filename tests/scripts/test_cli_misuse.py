@@ -44,7 +44,9 @@ CASES: dict[str, list] = {
         *[misuse(flag, v) for flag in ("--episodes", "--candidates", "--calls", "--repeat") for v in COUNT],
         *[misuse("--track-length", v) for v in ("3", "abc", "0")],  # the env needs >= 8 frames
         misuse("--seed", "-1"), misuse("--backend", "nope"), misuse("--episodes"), misuse("--epi", "3"),
+        *[misuse(flag, v) for flag in ("--n-envs", "--vec-steps", "--filterpy-tracks") for v in COUNT],
     ],
+    "bench_train": [*[misuse("--timesteps", v) for v in COUNT], misuse("--out", "{file}"), misuse("--out", "{under_file}")],
     "bench_video": [
         *[misuse(flag, v) for flag in ("--videos", "--frames") for v in COUNT],
         misuse("--frames", "2000000"),  # beyond the generator's limit
