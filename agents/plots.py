@@ -116,3 +116,19 @@ def parameter_schedule(path: Path, schedules: dict[str, list[tuple[tuple[int, in
     axes[0, 0].legend(fontsize=7, loc="upper right")
     fig.suptitle(title + "\n(dashed: noise-regime switches; orange: manoeuvres; grey: occlusion gaps)", fontsize=9)
     _save(fig, path)
+
+
+def performance_profile(path: Path, taus: np.ndarray, curves: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, int]],
+                        title: str) -> None:
+    """Performance profiles (:func:`agents.seeds_report.profile_curves`): the fraction of runs × tasks with a
+    log-ratio above τ, per method, with its 95 % stratified bootstrap band."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, (curve, low, high, runs) in curves.items():
+        ax.plot(taus, curve, label=f"{name} ({runs} runs)")
+        ax.fill_between(taus, low, high, alpha=0.25)
+    ax.set_xlabel("τ: log(RMSE_rule / RMSE)")
+    ax.set_ylabel("fraction of runs × tasks with score > τ")
+    ax.set_title(title, fontsize=8)
+    ax.legend(fontsize=7)
+    _save(fig, path)
+

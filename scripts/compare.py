@@ -65,7 +65,7 @@ from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, 
                         out_dir, positive_int, tracker_set)
 from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,
                              standard_policies)
-from agents.plots import gain_boxplot, otb_curves, parameter_schedule, trajectories
+from agents.plots import gain_boxplot, otb_curves, parameter_schedule, performance_profile, trajectories
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.report_retune import retune_tables
 from agents.retune_eval import (ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
@@ -73,6 +73,7 @@ from agents.retune_eval import (ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, O
 from agents.run_files import RunError, write_text_atomic
 from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env
 from agents.safe_load import check_env_match
+from agents.seeds_report import profile_curves, seeds_section
 from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
 from envs.config import EnvConfig
 
@@ -86,7 +87,10 @@ DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episo
 
 def build_parser() -> ArgumentParser:
     p = ArgumentParser(prog="compare.py", description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False)
-    p.add_argument("--model", type=existing_dir, required=True, metavar="RUN_DIR", help="a scripts/train.py run directory")
+    p.add_argument("--model", type=existing_dir, nargs="+", required=True, metavar="RUN_DIR",
+                   help="a scripts/train.py run directory; several (FilterTune-v0 runs of one env, e.g. training seeds): "
+                        "each scored on the same episodes as <algo>_s<seed>, and summary.md adds IQM and mean across "
+                        "them with stratified bootstrap CIs (agents.seeds_report) and performance_profile.png; needs --out")
     p.add_argument("--env", default=None, metavar="ID", help=f"env id (default: the run's; one of {ENVS}, the run's kind)")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
                    help="override the run's env arguments (envs.config.EnvConfig fields, YAML values; KEY:VALUE also "
@@ -163,17 +167,36 @@ def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env)
     return evaluation_episodes(env, args.split, episodes=n, seeds_per_sequence=k, seed=args.seed)
 
 
-def load_learned(args: argparse.Namespace, cfg: dict[str, Any], env: gym.Env) -> list[SB3Policy]:
-    """The run's final model and, if the run has one, its best-on-validation model (``<algo>_best``), each
-    checked against the evaluation env ``env``."""
-    learned = [SB3Policy.load(args.model, "final", trust_pickle=args.trust_pickle)]
-    if (args.model / "best_model.zip").exists():
-        best = SB3Policy.load(args.model, "best", trust_pickle=args.trust_pickle)
-        best.name = f"{cfg['algo']}_best"
-        learned.append(best)
+def load_learned(run: Path, cfg: dict[str, Any], env: gym.Env, trust_pickle: bool, suffix: str = "") -> list[SB3Policy]:
+    """The run's final model and, if the run has one, its best-on-validation model (``<algo>_best``), named with
+    ``suffix``, each checked against the evaluation env ``env``."""
+    learned = [SB3Policy.load(run, "final", trust_pickle=trust_pickle)]
+    if (run / "best_model.zip").exists():
+        learned.append(SB3Policy.load(run, "best", trust_pickle=trust_pickle))
     for policy, prefix in zip(learned, ("", "best_")):
-        check_env_match(args.model / f"{prefix}model.zip", policy.model, cfg, env)
+        policy.name = f"{cfg['algo']}{'_best' if prefix else ''}{suffix}"
+        check_env_match(run / f"{prefix}model.zip", policy.model, cfg, env)
     return learned
+
+
+def load_seed_runs(runs: list[Path], cfg: dict[str, Any], env: gym.Env, trust_pickle: bool
+                   ) -> tuple[list[SB3Policy], dict[str, list[str]]]:
+    """Several runs of one FilterTune-v0 env (training seeds): their models named ``<algo>[_best]_s<seed>`` and
+    the groups to aggregate ({``<algo>``: names, ``<algo>_best``: names if every run has a best model})."""
+    learned: list[SB3Policy] = []
+    seeds: dict[int, Path] = {}
+    for run in runs:
+        other = load_config(run)
+        if (other["env_id"], other["env_kwargs"], other["algo"]) != (cfg["env_id"], cfg["env_kwargs"], cfg["algo"]):
+            raise RunError(f"{run}: {other['algo']} on {other['env_id']} {other['env_kwargs']}; several --model must be "
+                           f"runs of one algorithm and env ({runs[0]}: {cfg['algo']} on {cfg['env_id']} {cfg['env_kwargs']})")
+        if other["seed"] in seeds:
+            raise RunError(f"{run}: seed {other['seed']} again (also {seeds[other['seed']]}); several --model need distinct seeds")
+        seeds[other["seed"]] = run
+        learned += load_learned(run, other, env, trust_pickle, suffix=f"_s{other['seed']}")
+    algo = cfg["algo"]
+    groups = {name: [p.name for p in learned if p.name.rsplit("_s", 1)[0] == name] for name in (algo, f"{algo}_best")}
+    return learned, {k: v for k, v in groups.items() if len(v) == len(runs)}
 
 
 def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneShotLearned:
@@ -251,12 +274,17 @@ def main(argv: list[str] | None = None) -> Path:
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     command = shlex.join(["python", "scripts/compare.py", *(sys.argv[1:] if argv is None else argv)])
+    runs, args.model = args.model, args.model[0]
+    if len(runs) > 1 and args.out is None:
+        parser.error("--out: required with several --model")
     out = args.out or args.model / "compare"
+    groups: dict[str, list[str]] = {}
     try:  # everything that can be checked is checked before the (long) fitting and scoring
         check_free(out, "choose another --out")
         cfg = load_config(args.model)
-        if cfg["env_id"] not in ENVS:
-            raise RunError(f"{args.model} was trained on {cfg['env_id']}; compare.py scores runs of {ENVS}")
+        if cfg["env_id"] not in ENVS or (len(runs) > 1 and cfg["env_id"] != ONE_STEP_ENV):
+            raise RunError(f"{args.model} was trained on {cfg['env_id']}; compare.py scores runs of "
+                           f"{ENVS if len(runs) == 1 else ONE_STEP_ENV + ' (several --model)'}")
         env_id, env_kwargs = evaluation_env(parser, args, cfg)
         try:
             test_env, train_env = make_env(env_id, env_kwargs, split=args.split), make_env(env_id, env_kwargs, split="train")
@@ -264,7 +292,10 @@ def main(argv: list[str] | None = None) -> Path:
             raise RunError(f"{env_flags(args) or '--model'}: env {env_id} {env_kwargs} cannot be built "
                            f"({' '.join(str(err).split())})") from None
         episodes = episode_plan(parser, args, test_env)
-        learned = load_learned(args, cfg, test_env)
+        if len(runs) > 1:
+            learned, groups = load_seed_runs(runs, cfg, test_env, args.trust_pickle)
+        else:
+            learned = load_learned(args.model, cfg, test_env, args.trust_pickle)
         oneshot = load_oneshot(args, env_kwargs) if args.oneshot_model is not None else None
         out.mkdir(parents=True, exist_ok=True)
     except (RunError, OSError) as err:
@@ -298,7 +329,8 @@ def main(argv: list[str] | None = None) -> Path:
     other = "oracle_auc: the same search maximising success AUC" if config.reward == "rmse" else \
         "oracle_rmse: the same search minimising RMSE"
     settings_md = {"command": f"`{command}`",
-                   "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})",
+                   "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})"
+                            if len(runs) == 1 else ", ".join(f"`{r}`" for r in runs) + " (one per training seed)",
                    "env": f"`{env_kwargs}`" + (f" (changed from the run's: {changed})" if changed else
                                                 " (the run's own)"),
                    "test episodes": describe_episodes(args, source, episodes),
@@ -310,9 +342,16 @@ def main(argv: list[str] | None = None) -> Path:
     attributes = ({name: test_env.unwrapped.source.dataset.sequence(name).attributes for name in
                    {e.sequence for e in episodes}} if source in OTB_SOURCES else None)
     summary = summary_markdown(result.rows, result.truth_at_test, learned=[p.name for p in learned], title=title,
-                               settings=settings_md, figures=["gain_boxplot.png", "otb_curves.png", "trajectory.png"],
+                               settings=settings_md, figures=["gain_boxplot.png", "otb_curves.png", "trajectory.png",
+                                                                 *(["performance_profile.png"] if groups else [])],
                                n_boot=args.bootstrap, seed=args.seed,
                                rmse_oracle="oracle" if config.reward == "rmse" else "oracle_rmse", attributes=attributes)
+    if groups:
+        taus, curves = profile_curves(result.rows, groups, n_boot=args.bootstrap, seed=args.seed)
+        performance_profile(out / "performance_profile.png", taus, curves, title)
+        head, figures = summary.split("## Figures")
+        summary = head + seeds_section(result.rows, groups, n_boot=args.bootstrap, seed=args.seed,
+                                       reference=("raw", "rule", "oracle")) + "\n## Figures" + figures
     write_text_atomic(out / "summary.md", summary)
     print(summary.split("## Paired")[0])
     print(f"wrote {out}")

@@ -46,6 +46,14 @@ CASES: dict[str, list] = {
         misuse("--seed", "-1"), misuse("--backend", "nope"), misuse("--episodes"), misuse("--epi", "3"),
         *[misuse(flag, v) for flag in ("--n-envs", "--vec-steps", "--filterpy-tracks") for v in COUNT],
     ],
+    "sweep": [
+        misuse("--out", "{file}", "--smoke", mentions="--out"), misuse("--smoke", mentions="--out"),
+        misuse("--out", "{out}", "--seeds", "-1", mentions="--seeds"),
+        misuse("--out", "{out}", "--seeds", "1", "1"), misuse("--out", "{out}", "--algos", "nope"),
+        misuse("--out", "{out}", "--hyperparams", "learning_rate"), misuse("--out", "{out}", "--hyperparams", "lr:1,,2"),
+        misuse("--out", "{dir}", "--resume", "--smoke", mentions="sweep.json"),
+        misuse("--out", "{out}", "--cpus-per-trial", "0"),
+    ],
     "bench_train": [*[misuse("--timesteps", v) for v in COUNT], misuse("--out", "{file}"), misuse("--out", "{under_file}")],
     "bench_video": [
         *[misuse(flag, v) for flag in ("--videos", "--frames") for v in COUNT],

@@ -150,3 +150,24 @@ def test_mix_episodes_are_drawn_and_cluster_by_sequence_where_they_have_one(tiny
     lone, named = sources.count("sim"), len({s for s in sequences if s})
     assert f"({lone + named} clusters: {named} sequences, each with all its episodes, and {lone} episodes without a " \
            "sequence)" in (out / "summary.md").read_text()
+
+
+def test_several_seeds_are_scored_together_and_aggregated(tiny_run: Path, train, tmp_path: Path, capsys) -> None:  # noqa: F811
+    from .tiny_run import TINY
+
+    second = train.main([*TINY, "--seed", "1", "--out", str(tmp_path / "s1")])
+    main = load_script("compare").main
+    out = main(["--model", str(tiny_run), str(second), *FAST, "--episodes", "4", "--out", str(tmp_path / "both")])
+    table = rows(out)
+    assert {"ppo_s0", "ppo_s1", "ppo_best_s0", "ppo_best_s1", "rule", "oracle"} <= {r["method"] for r in table}
+    assert of(table, "ppo_s0", "episode") == of(table, "ppo_s1", "episode") == ["0", "1", "2", "3"]  # the same episodes
+    summary = (out / "summary.md").read_text()
+    section = summary.split("## Across training seeds")[1]
+    assert "| ppo | 2 |" in section and "| ppo_best | 2 |" in section and "| rule | 1 | +0.000 [+0.000, +0.000]" in section
+    assert (out / "performance_profile.png").stat().st_size > 0
+    for argv, match in ((["--model", str(tiny_run), str(second)], "--out: required with several --model"),
+                        (["--model", str(tiny_run), str(tiny_run), "--out", str(tmp_path / "x")], "seed 0 again")):
+        capsys.readouterr()
+        with pytest.raises(SystemExit) as exit_info:
+            main(argv)
+        assert exit_info.value.code == 2 and match in capsys.readouterr().err
