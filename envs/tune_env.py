@@ -160,6 +160,10 @@ class FilterTuneEnv(TrackEnv):
     * v0, ``scenario="nonstationary"`` (the default stationary episodes unchanged bit for bit); a reseeded reset
       prepares one episode of its block, the rest at the next reset (the same episodes; ~27× → ~2.4× the cost
       of an unseeded reset in ``scripts/bench_env.py``).
+    * v0, batched (no change to any FIR-family episode; Kalman-family values move by ~1e-15 relative): the
+      registered ``vector_entry_point`` :class:`envs.vector.TuneVectorEnv` (``gym.make_vec`` /
+      ``envs.make_vec``: n tracks per step in one batch); the fixed rule of ``kf`` / ``kf_cmn`` runs in frame
+      units, so a block of tracks with different τ shares one filter call.
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

@@ -4,6 +4,7 @@
     python scripts/compare.py --model runs/ppo_ufir_cmn_sim_s0 --episodes 500
     python scripts/compare.py --model runs/ppo_ufir_cmn_sim_s0 --env-kwargs source=otb          # transfer: OTB replay
     python scripts/compare.py --model RUN --env-kwargs source=otb_tracker "trackers=[SiamRPN++, CFNet, STRUCK, MDNet]"
+    python scripts/compare.py --model runs/ppo_s0 runs/ppo_s1 runs/ppo_s2 --out runs/ppo_seeds   # across training seeds
 
 The env: the run's own (config.yml's env id and env_kwargs) unless --env / --env-kwargs KEY=VALUE ... change it
 (any envs.config.EnvConfig field, YAML values, KEY:VALUE also accepted, split at the first = or :; checked before
@@ -42,7 +43,10 @@ tracker empty for sim), summary.md (tables with 95 % bootstrap CIs that resample
 a synthetic video with all its episodes — and simulated episodes, each its own cluster; sources other than sim
 add success AUC / precision against raw and rule, OTB sources per-attribute deltas and, for otb_tracker, rows
 per tracker), gain_boxplot.png, otb_curves.png,
-trajectory.png. The run's models are loaded without unpickling anything and checked against its config.yml
+trajectory.png; with several --model (FilterTune-v0 runs of one algorithm and env, distinct seeds) every model is
+scored on the same episodes as <algo>_s<seed> / <algo>_best_s<seed> beside one set of baselines, and summary.md
+adds their IQM and mean across seeds with stratified bootstrap CIs (rliable's estimator, agents.seeds_report)
+and performance_profile.png. The run's models are loaded without unpickling anything and checked against its config.yml
 (agents.safe_load) and against the evaluation env before any baseline is fitted; an old run whose statistics
 are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can run code: only for runs you
 trust). Bad arguments or run files: one line naming them, exit status 2.
