@@ -140,7 +140,7 @@ def load_hyperparams(algo: str, env_id: str, overrides: dict[str, Any] | None = 
     if vec_env == "batched" and env_id not in BATCHED_IDS:
         if "vec_env" in (overrides or {}):
             raise ValueError(f"{where}: vec_env='batched' exists for {BATCHED_IDS} only; allowed here: 'subproc', 'dummy'")
-        vec_env = "subproc"  # the file's default where the env has no batched form
+        vec_env = raw["vec_env"] = "subproc"  # the file's default where the env has no batched form (config.yml keeps it)
     normalize = entry.pop("normalize", False)
     if normalize is True:
         normalize = {"norm_obs": True, "norm_reward": False}

@@ -32,13 +32,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from envs.config import SPLITS
+
 TEST_BASE = 10**9
 VAL_BASE = 2 * 10**9
 RESERVED = (10**9, 3 * 10**9)  # [low, high): seeds the train split never uses
 SPLIT_SIZE = 10**9  # at most this many val / test episodes
 SEED_HIGH = 2**62
 
-SPLITS = ("train", "val", "test")
 
 
 def eval_seeds(split: str, n: int, start: int = 0) -> np.ndarray:

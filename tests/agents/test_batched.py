@@ -63,6 +63,8 @@ def test_options_and_set_attr_are_refused() -> None:
 
 def test_the_ppo_file_batches_filtertune_and_runs_other_envs_in_subprocesses() -> None:
     assert load_hyperparams("ppo", TUNE).vec_env == "batched"
-    assert load_hyperparams("ppo", RETUNE).vec_env == "subproc"  # the file's batched, where the env has none
+    retune = load_hyperparams("ppo", RETUNE)
+    assert retune.vec_env == "subproc" and retune.raw["vec_env"] == "subproc"  # the file's batched, where the env has none
+    assert load_hyperparams("ppo", RETUNE, retune.raw).vec_env == "subproc"  # a run's config.yml loads again (resume)
     with pytest.raises(ValueError, match="vec_env='batched' exists for"):
         load_hyperparams("ppo", RETUNE, {"vec_env": "batched"})

@@ -34,6 +34,8 @@ TRAIN = [
     misuse("--hyperparams", "n_steps:8", "n_steps:16", mentions="n_steps given twice"),
     misuse("--hyperparams", "bogus_key:1", mentions="bogus_key"),
     misuse("--hyperparams", "vec_env:threads", mentions="vec_env='threads'"),
+    misuse("--vec", "threads"), misuse("--vec", "batched", "--hyperparams", "vec_env:dummy", mentions="--vec: given twice"),
+    misuse("--vec", "batched", "--env", "bboxtune/FilterRetune-v0", mentions="vec_env='batched' exists for"),
     misuse("--env-kwargs", "track_length:3", mentions="track_length=3"),
     misuse("--env-kwargs", "track_length:abc", mentions="track_length"),
     misuse("--env-kwargs", "nope:1", mentions="nope"),
