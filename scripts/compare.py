@@ -327,7 +327,7 @@ def main(argv: list[str] | None = None) -> Path:
     otb_curves(out / "otb_curves.png", result.success, result.precision, title)
     ex = result.example
     trajectories(out / "trajectory.png", ex["truth"], ex["y"], {k: v for k, v in ex["estimates"].items()
-                 if k in ("rule", "oracle", "amortised", algo)}, f"{title}\ntest episode 0: " + ", ".join(
+                 if k in ("rule", "oracle", "amortised", learned[0].name)}, f"{title}\ntest episode 0: " + ", ".join(
                      f"{k} {v:.3g}" for k, v in ex["meta"].items() if isinstance(v, float)))
     changed = sorted(k for k, v in env_kwargs.items() if k not in cfg["env_kwargs"] or cfg["env_kwargs"][k] != v)
     other = "oracle_auc: the same search maximising success AUC" if config.reward == "rmse" else \
@@ -351,7 +351,9 @@ def main(argv: list[str] | None = None) -> Path:
                                n_boot=args.bootstrap, seed=args.seed,
                                rmse_oracle="oracle" if config.reward == "rmse" else "oracle_rmse", attributes=attributes)
     if groups:
-        taus, curves = profile_curves(result.rows, groups, n_boot=args.bootstrap, seed=args.seed)
+        scored = {r["method"] for r in result.rows}
+        references = {m: [m] for m in ("raw", "rule_est_sigma", "amortised", "oracle") if m in scored}
+        taus, curves = profile_curves(result.rows, {**groups, **references}, n_boot=args.bootstrap, seed=args.seed)
         performance_profile(out / "performance_profile.png", taus, curves, title)
         head, figures = summary.split("## Figures")
         summary = head + seeds_section(result.rows, groups, n_boot=args.bootstrap, seed=args.seed,
