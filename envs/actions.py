@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from filters.horizon import rule_horizon
+
 TUNABLE: tuple[str, ...] = ("psi", "horizon", "sigma_w", "sigma_v")
 
 # Which parameters each back end accepts from the tuner (the others stay at their nominal values).
@@ -53,6 +55,9 @@ DEFAULT_TUNE: dict[str, tuple[str, ...]] = {
 _TOLERANCE = 1e-6
 
 
+K_AXIS = 2  # state size of one coordinate's constant-velocity model (the smallest horizon)
+
+
 @dataclass(frozen=True)
 class Nominal:
     """The nominal parameter values of one episode (what the fixed rule uses)."""
@@ -61,6 +66,18 @@ class Nominal:
     sigma_v: float  # coordinate units, white measurement noise std
     psi: float  # CMN coloredness assumed by the rule
     horizon: int  # frames, the rule's N = round(N_opt(σ_v, σ_w, τ)) within [K, N_max]
+
+    @classmethod
+    def of_rule(cls, sigma_v: float, sigma_w: float, tau: float, psi: float, horizon_max: int) -> Nominal:
+        """The fixed rule's parameters for nominal σ_v, σ_w (px, px/s²) at frame interval ``tau`` (s): ψ as
+        given and N = N_opt(σ_v, σ_w, τ) within [``K_AXIS``, ``horizon_max``] (:func:`filters.horizon.rule_horizon`)."""
+        horizon = rule_horizon(sigma_v, sigma_w, tau, K_AXIS, max_horizon=horizon_max)
+        return cls(sigma_w=sigma_w, sigma_v=sigma_v, psi=psi, horizon=int(horizon))
+
+    def as_params(self) -> dict[str, np.ndarray]:
+        """The parameters as one candidate of a filter run: {name: array (1,)} for every name in ``TUNABLE``."""
+        return {"psi": np.array([self.psi]), "horizon": np.array([self.horizon]),
+                "sigma_w": np.array([self.sigma_w]), "sigma_v": np.array([self.sigma_v])}
 
 
 @dataclass(frozen=True)

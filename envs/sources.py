@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from envs.actions import Nominal
+from envs.actions import K_AXIS, Nominal
 from envs.config import MIX_SOURCES, EnvConfig
 from envs.features import box_scale
 from envs.sim_regimes import simulate_nonstationary
@@ -36,7 +36,6 @@ from filters.horizon import rule_horizon
 if TYPE_CHECKING:
     from envs.otb import OTBDataset
 
-K_AXIS = 2  # state size of one coordinate's constant-velocity model
 
 
 @dataclass(frozen=True)
@@ -59,8 +58,7 @@ def _log_uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
 def rule_nominal(cfg: EnvConfig, sigma_v: float, sigma_w: float, tau: float) -> Nominal:
     """The fixed rule's parameters for nominal σ_v, σ_w (px, px/s²) at frame interval ``tau`` (s): N = N_opt
     within [K, ``cfg.horizon_max``], ψ = ``cfg.nominal_psi``."""
-    horizon = rule_horizon(sigma_v, sigma_w, tau, K_AXIS, max_horizon=cfg.horizon_max)
-    return Nominal(sigma_w=sigma_w, sigma_v=sigma_v, psi=cfg.nominal_psi, horizon=int(horizon))
+    return Nominal.of_rule(sigma_v, sigma_w, tau, cfg.nominal_psi, cfg.horizon_max)
 
 
 class Source:
@@ -139,9 +137,7 @@ class SimSource(Source):
     def _nonstationary(self, seed: int, scenario: Scenario) -> Episode:
         """The nonstationary episode of ``seed`` around its drawn ``scenario`` (:mod:`envs.sim_regimes`)."""
         track, truth = simulate_nonstationary(scenario, seed, self.cfg.psi_range, self.cfg.sigma_xi_range)
-        horizon = rule_horizon(self.sigma_v_nominal, self.sigma_w_nominal, track.tau, K_AXIS, max_horizon=self.cfg.horizon_max)
-        nominal = Nominal(sigma_w=self.sigma_w_nominal, sigma_v=self.sigma_v_nominal, psi=self.cfg.nominal_psi,
-                          horizon=int(horizon))
+        nominal = rule_nominal(self.cfg, self.sigma_v_nominal, self.sigma_w_nominal, track.tau)
         return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal,
                        meta={"sequence": None, "noise_seed": seed, "tau": scenario.tau}, scenario=truth)
 

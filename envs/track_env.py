@@ -16,10 +16,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs.actions import ACCEPTS, ActionMap
+from envs.actions import ACCEPTS, K_AXIS, ActionMap
 from envs.config import EnvConfig
 from envs.render import draw_episode
-from envs.sources import K_AXIS, Episode, make_source
+from envs.sources import Episode, make_source
 
 RESET_OPTIONS = ("sequence", "noise_seed", "tracker")
 
@@ -117,9 +117,7 @@ class TrackEnv(gym.Env):
     @staticmethod
     def rule_params(ep: Episode) -> dict[str, np.ndarray]:
         """The fixed rule's parameters on ``ep`` as arrays (1,)."""
-        nominal = ep.nominal
-        return {"psi": np.array([nominal.psi]), "horizon": np.array([nominal.horizon]),
-                "sigma_w": np.array([nominal.sigma_w]), "sigma_v": np.array([nominal.sigma_v])}
+        return ep.nominal.as_params()
 
     def physical(self, params: dict[str, np.ndarray], row: int = 0) -> dict[str, float | int]:
         """The parameters the back end uses, of candidate ``row``, as Python numbers (for ``info``)."""

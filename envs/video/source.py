@@ -38,11 +38,9 @@ from envs.features import box_scale
 from envs.sources import Episode, Source
 from envs.video.detectors import DETECTORS, detect_video, make_detector
 from envs.video.synthetic import VideoRanges, synthetic_video
-from filters.horizon import rule_horizon
 
 GENERATOR_VERSION = 2  # bump when the generator or a detector changes its output (2: re-detection, template scales)
 SPLIT_OFFSET = {"train": 0, "val": 1_000_000, "test": 2_000_000}  # generator seed = offset + index
-K_AXIS = 2  # state size of one coordinate's CV model
 
 # (σ_v / scale, σ_w / scale [1/s²]) per detector: medians over 24 training videos of the robust
 # (MAD) centre error and the RMS true acceleration, from calibrate_nominal().
@@ -159,8 +157,7 @@ class VideoSource(Source):
         rel_v, rel_w = self.settings.nominal_rel
         scale = box_scale(y)
         sigma_v, sigma_w = rel_v * scale, rel_w * scale
-        horizon = int(rule_horizon(sigma_v, sigma_w, tau, K_AXIS, max_horizon=self.horizon_max))
-        nominal = Nominal(sigma_w=sigma_w, sigma_v=sigma_v, psi=self.nominal_psi, horizon=horizon)
+        nominal = Nominal.of_rule(sigma_v, sigma_w, tau, self.nominal_psi, self.horizon_max)
         meta = {**meta, "detector": self.settings.detector, "tau": tau,
                 "n_missing": int(np.isnan(y).any(axis=1).sum())}
         return Episode(truth=xywh_to_cxcywh(data["truth"]), y=y, tau=tau, nominal=nominal, meta=meta)

@@ -24,10 +24,10 @@ from typing import Any
 import numpy as np
 
 from envs import textfile
-from envs.actions import DEFAULT_TUNE, ActionMap
+from envs.actions import DEFAULT_TUNE, K_AXIS, ActionMap
 from envs.features import measurement_features
 from envs.scoring import run_positions, score_estimates
-from envs.sources import K_AXIS, Episode
+from envs.sources import Episode
 
 
 def action_map(backend: str, tune: Sequence[str] | None = None, horizon_max: int = 400,

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.actions import ACCEPTS, DEFAULT_TUNE, ActionMap, Nominal
+from envs.actions import ACCEPTS, DEFAULT_TUNE, TUNABLE, ActionMap, Nominal
 from envs.features import FEATURE_NAMES, estimate_sigmas, measurement_features
 
 NOMINAL = Nominal(sigma_w=10.0, sigma_v=2.0, psi=0.0, horizon=24)
@@ -104,3 +104,15 @@ def test_sigma_estimates_recover_white_noise_statistics() -> None:
     sv, sw = estimate_sigmas(y, 0.05)
     assert sv == pytest.approx(2.0, rel=0.05)
     assert sw == pytest.approx(30.0, rel=0.25)
+
+
+def test_nominal_of_the_rule_and_as_params() -> None:
+    from filters.horizon import rule_horizon
+
+    nominal = Nominal.of_rule(sigma_v=4.0, sigma_w=50.0, tau=0.05, psi=0.6, horizon_max=400)
+    assert nominal.horizon == int(rule_horizon(4.0, 50.0, 0.05, 2, max_horizon=400)) and nominal.psi == 0.6
+    assert Nominal.of_rule(4.0, 1e-6, 0.05, 0.0, horizon_max=30).horizon == 30  # N_opt capped at N_max
+    params = nominal.as_params()
+    assert sorted(params) == sorted(TUNABLE) and all(v.shape == (1,) for v in params.values())
+    np.testing.assert_array_equal(ActionMap(tune=TUNABLE, K=2).to_params(
+        ActionMap(tune=TUNABLE, K=2).to_actions(params, nominal), nominal)["horizon"], params["horizon"])
