@@ -21,6 +21,7 @@ Ray is an optional extra (``bboxtune[ray]``): it is imported by the functions th
 from __future__ import annotations
 
 import csv
+import io
 import itertools
 import json
 import os
@@ -121,13 +122,11 @@ def run_trial(config: dict[str, Any]) -> dict[str, float]:
 
 def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     """``rows`` (equal keys) as a CSV file, written atomically."""
-    lines = [",".join(rows[0])] + [",".join(_cell(v) for v in row.values()) for row in rows]
-    write_text_atomic(path, "\n".join(lines) + "\n")
-
-
-def _cell(value: Any) -> str:
-    text = f"{value:.6g}" if isinstance(value, float) else str(value)
-    return '"' + text.replace('"', '""') + '"' if any(c in text for c in ',"\n') else text
+    text = io.StringIO(newline="")
+    writer = csv.DictWriter(text, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomic(path, text.getvalue())
 
 
 def aggregate(out: Path) -> list[dict[str, Any]]:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -356,21 +356,26 @@ def check_prior(x0: object, P0: object, K: int, M: int, sigma_v: np.ndarray,
     return x, P
 
 
-def prior_in_frames(params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
-    """``params`` whose prior ``x0`` (K,) / ``P0`` (K, K) of the state [positions, velocities] becomes that of
-    [positions, velocities τ] (the frame-unit state of :meth:`filters.base.Filter.params_in_frames`); one prior
-    serves all tracks, so ``tau`` must then be a scalar."""
-    x0, P0 = params.get("x0"), params.get("P0")
-    if x0 is None and P0 is None:
-        return params
-    if np.ndim(tau) != 0:
-        raise ValueError(f"tau has shape {np.shape(tau)} but x0/P0 is one prior for all tracks; allowed: a scalar tau")
-    K = len(x0) if x0 is not None else len(P0)
-    scale = np.concatenate([np.ones(K // 2), np.full(K // 2, float(tau))])
-    out = dict(params)
-    if x0 is not None:
-        out["x0"] = np.asarray(x0, dtype=float) * scale
-    if P0 is not None:
-        out["P0"] = np.asarray(P0, dtype=float) * np.outer(scale, scale)
-    return out
+class FramePrior:
+    """Mixin of the Kalman back ends that run exactly in frame units (``IN_FRAMES``): besides σ_w → σ_w τ²
+    (:meth:`filters.base.Filter.params_in_frames`), the prior ``x0`` (K,) / ``P0`` (K, K) of the state
+    [positions, velocities] becomes that of [positions, velocities τ]; one prior serves all tracks, so ``tau``
+    must then be a scalar."""
 
+    IN_FRAMES: ClassVar[bool] = True
+
+    @classmethod
+    def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
+        out = super().params_in_frames(params, tau)  # type: ignore[misc]
+        x0, P0 = out.get("x0"), out.get("P0")
+        if x0 is None and P0 is None:
+            return out
+        if np.ndim(tau) != 0:
+            raise ValueError(f"tau has shape {np.shape(tau)} but x0/P0 is one prior for all tracks; allowed: a scalar tau")
+        K = len(x0) if x0 is not None else len(P0)
+        scale = np.concatenate([np.ones(K // 2), np.full(K // 2, float(tau))])
+        if x0 is not None:
+            out["x0"] = np.asarray(x0, dtype=float) * scale
+        if P0 is not None:
+            out["P0"] = np.asarray(P0, dtype=float) * np.outer(scale, scale)
+        return out

@@ -37,12 +37,12 @@ from typing import Any, ClassVar
 import numpy as np
 
 from filters.base import AxisCarry, Filter
-from filters.kalman_core import (StepTables, channel_start, check_prior, filter_channels, frame_kinds, plain_tables,
-                                 prior_in_frames)
+from filters.kalman_core import (FramePrior, StepTables, channel_start, check_prior, filter_channels, frame_kinds,
+                                 plain_tables)
 from filters.validation import check_sigma
 
 
-class KF(Filter):
+class KF(FramePrior, Filter):
     """Kalman filter. Parameters: ``sigma_w`` (acceleration noise std, units/s², per track), ``sigma_v``
     (measurement noise std, units, per track), ``x0`` (K,) and ``P0`` (K, K) prior (see module docstring); valid
     ranges in :mod:`filters.validation` (σ within [1e-30, 1e30], P0 at most 1e8 σ_v² per coordinate in frame
@@ -51,13 +51,6 @@ class KF(Filter):
     name: ClassVar[str] = "kf"
     DEFAULTS: ClassVar[dict[str, Any]] = {"sigma_w": 1.0, "sigma_v": 1.0, "x0": None, "P0": None}
     PER_TRACK: ClassVar[tuple[str, ...]] = ("sigma_w", "sigma_v")
-
-    IN_FRAMES: ClassVar[bool] = True
-
-    @classmethod
-    def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
-        """As :meth:`filters.base.Filter.params_in_frames`, with the prior's velocities in units per frame."""
-        return prior_in_frames(super().params_in_frames(params, tau), tau)
 
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
         sigma_v = check_sigma("sigma_v", params["sigma_v"])

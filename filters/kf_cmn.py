@@ -46,12 +46,12 @@ import numpy as np
 
 from filters.base import AxisCarry, Filter
 from filters.model import StateSpaceModel
-from filters.kalman_core import (UPDATE_Z, StepTables, channel_start, check_prior, filter_channels, frame_kinds,
-                                 plain_tables, prior_in_frames)
+from filters.kalman_core import (UPDATE_Z, FramePrior, StepTables, channel_start, check_prior, filter_channels,
+                                 frame_kinds, plain_tables)
 from filters.validation import check_sigma, check_psi
 
 
-class KFCMN(Filter):
+class KFCMN(FramePrior, Filter):
     """KF for CMN. Parameters: ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v`` (std σ_ξ of the
     white noise driving the CMN, units), ``psi`` (coloredness 0 <= ψ <= 0.99) — all per track — and the prior
     ``x0`` (K,), ``P0`` (K, K) (see module docstring); valid ranges in :mod:`filters.validation`."""
@@ -59,13 +59,6 @@ class KFCMN(Filter):
     name: ClassVar[str] = "kf_cmn"
     DEFAULTS: ClassVar[dict[str, Any]] = {"sigma_w": 1.0, "sigma_v": 1.0, "psi": 0.0, "x0": None, "P0": None}
     PER_TRACK: ClassVar[tuple[str, ...]] = ("sigma_w", "sigma_v", "psi")
-
-    IN_FRAMES: ClassVar[bool] = True
-
-    @classmethod
-    def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
-        """As :meth:`filters.base.Filter.params_in_frames`, with the prior's velocities in units per frame."""
-        return prior_in_frames(super().params_in_frames(params, tau), tau)
 
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
         sigma_v = check_sigma("sigma_v", params["sigma_v"])
