@@ -18,7 +18,7 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.actions import ActionMap, Nominal
-from envs.scoring import reward_from, run_positions, score_estimates
+from envs.scoring import reference_scores, reward_from, run_positions, score_estimates
 from envs.sources import Episode
 
 ScoreFn = Callable[[np.ndarray], dict[str, np.ndarray]]  # actions (A, d) -> {"reward": (A,), "rmse": (A,), ...}
@@ -44,6 +44,7 @@ class PinnedEpisode:
     obs: np.ndarray  # (n_features,) float32, the env's observation
     episode: Episode
     rule_scores: dict[str, float]  # the fixed rule's scores (``envs.scoring.SCORE_KEYS``)
+    reference_scores: dict[str, float]  # what the reward is measured against (the env's ``reward_baseline``)
 
 
 class EpisodeBank:
@@ -54,13 +55,16 @@ class EpisodeBank:
         base = env.unwrapped
         self.backend: str = base.config.backend
         self.reward_kind: str = base.config.reward
+        baseline: str = base.config.reward_baseline
         self.action_map = base.action_map
         self.items: list[PinnedEpisode] = []
         for seed in tqdm(seeds, desc="episodes", disable=not progress, leave=False):
             obs, _ = env.reset(options={"noise_seed": int(seed)})
             ep = base.episode
             rule = self._scores(ep, rule_action(env)[None])
-            self.items.append(PinnedEpisode(int(seed), np.asarray(obs), ep, {k: float(v[0]) for k, v in rule.items()}))
+            reference = reference_scores(baseline, rule, [ep.y], [ep.truth])
+            self.items.append(PinnedEpisode(int(seed), np.asarray(obs), ep, {k: float(v[0]) for k, v in rule.items()},
+                                            {k: float(v[0]) for k, v in reference.items()}))
 
     def head(self, n: int) -> EpisodeBank:
         """A bank of the first ``n`` episodes (the episodes are shared, not copied)."""
@@ -84,7 +88,7 @@ class EpisodeBank:
         """Scores of actions (A, d) on episode ``i``: ``reward`` and the ``envs.scoring`` keys, each (A,)."""
         item = self.items[i]
         scores = self._scores(item.episode, np.atleast_2d(actions))
-        return {"reward": reward_from(scores, item.rule_scores, self.reward_kind), **scores}
+        return {"reward": reward_from(scores, item.reference_scores, self.reward_kind), **scores}
 
     def scorer(self, i: int) -> ScoreFn:
         """``score`` bound to episode ``i``."""

@@ -123,6 +123,9 @@ class EnvConfig:
     source: str = "sim"  # "sim" | "otb" (GT + synthetic CMN) | "otb_tracker" (real tracker output) | "video" | "mix"
     backend: str = "ufir_cmn"  # any name in filters.NAMES
     reward: str = "rmse"  # "rmse": log(RMSE_rule / RMSE); "iou_precision" / "success_auc": difference to the rule
+    # FilterTune-v0: what the reward is measured against, "rule" | "raw" (the unfiltered measurements: the same best
+    # action per episode, a lower-variance signal where the filter should stay near the measurements)
+    reward_baseline: str = "rule"
     tune: tuple[str, ...] | None = None  # parameters the agent sets; None -> envs.actions.DEFAULT_TUNE[backend]
     track_length: int = 500  # frames per simulated track / video, integer in [8, TRACK_LENGTH_MAX]
     # sim scenario distribution ((low, high); log-uniform for σ, uniform otherwise)
@@ -174,6 +177,7 @@ class EnvConfig:
         put("source", check_choice("source", self.source, SOURCES))
         put("backend", check_choice("backend", self.backend, filters.NAMES))
         put("reward", check_choice("reward", self.reward, REWARDS))
+        put("reward_baseline", check_choice("reward_baseline", self.reward_baseline, ("rule", "raw")))
         put("split", check_choice("split", self.split, SPLITS))
         put("motion", check_choice("motion", self.motion, ("cv", "otb")))
         put("scenario", check_choice("scenario", self.scenario, SCENARIOS))

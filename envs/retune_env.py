@@ -124,7 +124,11 @@ class FilterRetuneEnv(TrackEnv):
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
-        tune = EnvConfig.from_kwargs(**kwargs).tune
+        config = EnvConfig.from_kwargs(**kwargs)
+        if config.reward_baseline != "rule":
+            raise ValueError(f"reward_baseline={config.reward_baseline!r} with FilterRetune-v0; allowed: 'rule' "
+                             "(a window's reward is measured against the rule; 'raw' is a FilterTune-v0 option)")
+        tune = config.tune
         super().__init__(len(WINDOW_FEATURE_NAMES) + len(tune) + 1, render_mode=render_mode, **kwargs)
         W = self.config.window
         self.source.require_frames(2 * W, f"FilterRetune-v0 with window={W} (a warm-up window and one step)")

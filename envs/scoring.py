@@ -132,10 +132,18 @@ def score_tracks(estimates: list[np.ndarray], truths: list[np.ndarray]) -> dict[
     return out
 
 
+def reference_scores(baseline: str, rule_scores: dict[str, np.ndarray], ys: list[np.ndarray],
+                     truths: list[np.ndarray]) -> dict[str, np.ndarray]:
+    """The scores a FilterTune-v0 reward is measured against (``EnvConfig.reward_baseline``), each (B,): the
+    rule's (``rule_scores``, returned as they are) or the unfiltered measurements' ``ys`` (B arrays (T_b, 4);
+    a frame without a measurement is a missing estimate, as :func:`score_estimates` counts it)."""
+    return rule_scores if baseline == "rule" else score_tracks(ys, truths)
+
+
 def reward_from(scores: dict[str, np.ndarray], rule: dict[str, float], kind: str) -> np.ndarray:
-    """The env reward for candidates' ``scores`` against the rule's: ``rmse`` → log(RMSE_rule / RMSE)
-    (scale-free: 0 = as good as the rule, +0.1 ≈ 10 % lower RMSE); ``iou_precision`` / ``success_auc`` →
-    candidate minus rule."""
+    """The env reward for candidates' ``scores`` against the reference's (``rule``: the rule's, or
+    :func:`reference_scores`): ``rmse`` → log(RMSE_ref / RMSE) (scale-free: 0 = as good as the reference, +0.1 ≈
+    10 % lower RMSE); ``iou_precision`` / ``success_auc`` → candidate minus reference."""
     if kind == "rmse":
         return np.log(rule["rmse"] / np.maximum(scores["rmse"], 1e-300))
     return scores[kind] - rule[kind]

@@ -8,7 +8,8 @@ from typing import Any
 import numpy as np
 
 from envs.features import measurement_features
-from envs.scoring import SCORE_KEYS, reward_from, run_positions, run_tracks, score_estimates, score_tracks
+from envs.scoring import (SCORE_KEYS, reference_scores, reward_from, run_positions, run_tracks, score_estimates,
+                           score_tracks)
 from envs.sources import Episode
 from envs.track_env import TrackEnv, check_reset_args
 
@@ -63,6 +64,10 @@ class FilterTuneEnv(TrackEnv):
     ``reward="rmse"`` (default): log(RMSE_rule / RMSE_action), RMSE over all frames with ground truth of the
     (cx, cy, w, h) error in px — scale-free, 0 means as good as the rule. ``"iou_precision"`` (seed 001's
     TP/(TP+FP) averaged over 21 IoU thresholds) and ``"success_auc"`` (OTB success AUC): action minus rule.
+    ``reward_baseline="raw"`` measures the same against the unfiltered measurements instead of the rule
+    (log(RMSE_raw / RMSE), action minus raw): per episode the rewards move by a constant, so the best action
+    and every method's ranking stay the same, but where the best filter stays close to the measurements (a
+    strong tracker's output) the signal no longer carries the rule's large, episode-dependent loss.
 
     ## Starting State
     ``reset`` draws an episode: for ``sim`` a scenario (ψ ~ U(psi_range), σ_w, σ_ξ log-uniform over their
@@ -164,6 +169,7 @@ class FilterTuneEnv(TrackEnv):
       registered ``vector_entry_point`` :class:`envs.vector.TuneVectorEnv` (``gym.make_vec`` /
       ``envs.make_vec``: n tracks per step in one batch); the fixed rule of ``kf`` / ``kf_cmn`` runs in frame
       units, so a block of tracks with different τ shares one filter call.
+    * v0, ``reward_baseline`` (default ``"rule"``: no change to any reward).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
@@ -206,12 +212,15 @@ class FilterTuneEnv(TrackEnv):
         return self._obs.copy(), {"track": dict(self.episode.meta)}
 
     def prepare(self, episodes: list[Episode]) -> list[tuple[Episode, dict[str, Any], np.ndarray]]:
-        """Each episode with its fixed-rule run (parameters, estimate, scores) and its observation — batched
+        """Each episode with its fixed-rule run (parameters, estimate, scores, and the ``reference`` scores the
+        reward is measured against: the rule's or the raw measurements', ``reward_baseline``) and its observation — batched
         over episodes of equal length (the rule's filter runs, its scores and the features)."""
         rule_params = [self.rule_params(ep) for ep in episodes]
         stacked = {k: np.concatenate([p[k] for p in rule_params]) for k in rule_params[0]}
         estimates = run_tracks(self.config.backend, [ep.y for ep in episodes], [ep.tau for ep in episodes], stacked)
-        scores = score_tracks(estimates, [ep.truth for ep in episodes])
+        truths = [ep.truth for ep in episodes]
+        scores = score_tracks(estimates, truths)
+        reference = reference_scores(self.config.reward_baseline, scores, [ep.y for ep in episodes], truths)
         out: list[tuple[Episode, dict[str, Any], np.ndarray]] = [None] * len(episodes)  # type: ignore[list-item]
         lengths = np.array([len(ep.y) for ep in episodes])
         for T in np.unique(lengths):  # the features of equal-length tracks in one call
@@ -221,7 +230,9 @@ class FilterTuneEnv(TrackEnv):
                                        [n.sigma_v for n in nominal], [n.sigma_w for n in nominal],
                                        np.stack([estimates[r] for r in rows]))
             for i, r in enumerate(rows):
-                rule = {"params": rule_params[r], "estimate": estimates[r], "scores": {k: float(v[r]) for k, v in scores.items()}}
+                rule = {"params": rule_params[r], "estimate": estimates[r],
+                        "scores": {k: float(v[r]) for k, v in scores.items()},
+                        "reference": {k: float(v[r]) for k, v in reference.items()}}
                 out[r] = (episodes[r], rule, obs[i])
         return out
 
@@ -235,7 +246,7 @@ class FilterTuneEnv(TrackEnv):
         params = self.action_map.to_params(actions, self.episode.nominal)
         est = run_positions(self.config.backend, self.episode.y, self.episode.tau, params)
         scores = score_estimates(est, self.episode.truth)
-        return {"reward": reward_from(scores, self._rule["scores"], self.config.reward), **scores,
+        return {"reward": reward_from(scores, self._rule["reference"], self.config.reward), **scores,
                 "params": params, "estimates": est}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:

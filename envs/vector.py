@@ -94,9 +94,9 @@ class TuneBatch:
         params = env.action_map.to_params(a, [ep.nominal for ep in episodes])
         estimates = run_tracks(env.config.backend, [ep.y for ep in episodes], [ep.tau for ep in episodes], params)
         scores = score_tracks(estimates, [ep.truth for ep in episodes])
-        rule = {k: np.array([p[1]["scores"][k] for p in self.prepared]) for k in SCORE_KEYS}
+        reference = {k: np.array([p[1]["reference"][k] for p in self.prepared]) for k in SCORE_KEYS}
         result = {**scores, "params": params}
-        rewards = reward_from(scores, rule, env.config.reward)
+        rewards = reward_from(scores, reference, env.config.reward)
         infos = [env.step_info(result, i, (p[0], p[1])) for i, p in enumerate(self.prepared)]
         self.prepared = []
         return rewards, infos

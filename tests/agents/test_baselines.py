@@ -64,7 +64,10 @@ def test_grid_search_finds_the_peak_of_a_smooth_surface() -> None:
     assert value > -1e-3
 
 
-def test_bank_scores_equal_the_env_scores(env: gym.Env) -> None:
+@pytest.mark.parametrize("baseline", ["rule", "raw"])
+def test_bank_scores_equal_the_env_scores(env: gym.Env, baseline: str) -> None:
+    if baseline == "raw":
+        env = gym.make(env.spec.id, **{**env.spec.kwargs, "reward_baseline": "raw"})
     bank = EpisodeBank(env, SEEDS[:2])
     actions = np.random.default_rng(0).uniform(-1, 1, (5, env.action_space.shape[0]))
     for i, seed in enumerate(SEEDS[:2]):

@@ -155,6 +155,32 @@ def test_bounded_rewards_are_differences_to_the_rule(reward: str) -> None:
     assert r == pytest.approx(info[reward] - info[f"rule_{reward}"])
 
 
+@pytest.mark.parametrize("reward", ["rmse", "success_auc"])
+def test_a_raw_reward_baseline_measures_against_the_measurements_and_keeps_the_best_action(reward: str) -> None:
+    rule_env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim", reward=reward)
+    raw_env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim", reward=reward, reward_baseline="raw")
+    actions = np.concatenate([-np.ones((1, 2)), np.random.default_rng(1).uniform(-1, 1, (6, 2))])
+    for env in (rule_env, raw_env):
+        env.reset(options={"noise_seed": 4})
+    by_rule, by_raw = rule_env.unwrapped.score(actions), raw_env.unwrapped.score(actions)
+    np.testing.assert_array_equal(by_raw[reward], by_rule[reward])  # the same estimates, other reference
+    shift = by_raw["reward"] - by_rule["reward"]
+    np.testing.assert_allclose(shift, shift[0], atol=1e-12)  # a constant per episode: the same best action
+    assert abs(by_raw["reward"][0]) < 1e-9  # ψ = 0, N = 2 reproduces the measurements (ufir_cmn)
+    rule_info = rule_env.step(actions[3].astype(np.float32))[-1]
+    raw_env.reset(options={"noise_seed": 4})
+    _, r, *_, info = raw_env.step(actions[3].astype(np.float32))
+    assert r == pytest.approx(by_raw["reward"][3])
+    assert info[f"rule_{reward}"] == rule_info[f"rule_{reward}"]  # the info still reports the rule's scores
+
+
+def test_a_raw_reward_baseline_is_refused_by_the_retune_env_and_others_everywhere() -> None:
+    with pytest.raises(ValueError, match="reward_baseline='raw' with FilterRetune-v0; allowed: 'rule'"):
+        gym.make("bboxtune/FilterRetune-v0", reward_baseline="raw")
+    with pytest.raises(ValueError, match="reward_baseline"):
+        gym.make("bboxtune/FilterTune-v0", reward_baseline="truth")
+
+
 def test_observation_uses_measurements_only() -> None:
     env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
     obs, _ = env.reset(seed=5)

@@ -32,9 +32,10 @@ def _tracks(infos: dict, n: int) -> list[dict]:
     return [{k: infos["track"][k][i] for k in infos["track"] if not k.startswith("_")} for i in range(n)]
 
 
-@pytest.mark.parametrize("backend", ["ufir_cmn", "kf_cmn", "oufir"])
-def test_a_batched_step_equals_the_single_env_on_the_same_episodes(backend: str) -> None:
-    kwargs = {"backend": backend, **SHORT}
+@pytest.mark.parametrize("backend, extra", [("ufir_cmn", {}), ("kf_cmn", {}), ("oufir", {}),
+                                            ("ufir_cmn", {"reward_baseline": "raw", "reward": "success_auc"})])
+def test_a_batched_step_equals_the_single_env_on_the_same_episodes(backend: str, extra: dict) -> None:
+    kwargs = {"backend": backend, **SHORT, **extra}
     venv = envs.make_vec(TUNE, 5, **kwargs)
     assert isinstance(venv, TuneVectorEnv) and venv.num_envs == 5
     obs, infos = venv.reset(seed=3)
