@@ -1,6 +1,6 @@
 """Non-learned tuners behind one small policy interface, scored on the same episodes as the learned ones.
 
-A policy maps the env's current episode to an action in [-1, 1]^d (``envs.actions.ActionMap``):
+A policy maps the env's current episode to an action in [-1, 1]^d (``envs.episodes.actions.ActionMap``):
 ``act(obs, env) -> (d,)``. Observation-only policies (:class:`ObsPolicy`: ``global``, ``amortised``, the
 trained SB3 model) use ``obs`` alone and also offer a batched ``predict(obs (n, F)) -> (n, d)``; the others
 read the episode through ``env.unwrapped`` (``episode``, ``action_map``, ``score``):
@@ -8,7 +8,7 @@ read the episode through ``env.unwrapped`` (``episode``, ``action_map``, ``score
 | name              | what it sets                                                     | ground truth at test |
 |-------------------|------------------------------------------------------------------|----------------------|
 | ``rule``          | the env's nominal parameters (N = N_opt(σ_v,nom, σ_w,nom, τ), ψ = nominal ψ) | no     |
-| ``rule_est_sigma``| the rule with σ̂_v, σ̂_w estimated from the measurements (``envs.features.estimate_sigmas``) | no |
+| ``rule_est_sigma``| the rule with σ̂_v, σ̂_w estimated from the measurements (``envs.episodes.features.estimate_sigmas``) | no |
 | ``rule_true_sigma``| the rule with the scenario's true ψ, σ_w, σ (sim only; see the class) | true scenario |
 | ``oracle``        | grid search + refinement on the env's reward with this episode's truth (the ceiling) | yes |
 | ``oracle_auc`` / ``oracle_rmse`` | the same search maximising success AUC / minimising RMSE (the other metric's ceiling) | yes |
@@ -33,9 +33,9 @@ from sklearn.preprocessing import StandardScaler
 from tqdm import tqdm
 
 from agents.episodes import EpisodeBank, ScoreFn, nominal_action
-from envs.actions import ActionMap, Nominal
-from envs.features import estimate_sigmas
-from envs.sources import Episode
+from envs.episodes.actions import ActionMap, Nominal
+from envs.episodes.features import estimate_sigmas
+from envs.episodes.episode import Episode
 from filters.horizon import rule_horizon
 
 CMN_BACKENDS = frozenset({"kf_cmn", "ufir_cmn"})  # back ends whose sigma_v is σ_ξ of the CMN
@@ -108,7 +108,7 @@ class RulePolicy(EpisodePolicy):
 
 class RuleEstimatedSigmaPolicy(EpisodePolicy):
     """The rule with σ̂_v, σ̂_w estimated from this episode's measurements (moment estimates that assume
-    white noise, ``envs.features.estimate_sigmas``), ψ at its nominal value. Deployable, no training."""
+    white noise, ``envs.episodes.features.estimate_sigmas``), ψ at its nominal value. Deployable, no training."""
 
     name = "rule_est_sigma"
 

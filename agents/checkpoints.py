@@ -24,7 +24,7 @@ from typing import Any
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from agents.run_files import REPLAY, STATS, RunError, read_json, save_replay_buffer, save_stats, write_text_atomic
-from envs import textfile
+from envs.data import textfile
 
 CHECKPOINTS = "checkpoints"
 LATEST = "latest"

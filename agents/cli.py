@@ -8,7 +8,7 @@ Every script validates its whole command line before it does any work or writes 
   defaults.
 * ``type=`` functions (argparse puts ``argument --flag:`` before their message): :func:`int_range`
   (:data:`positive_int`, :data:`nonnegative_int`), :func:`float_range` (:data:`positive_float`) — numbers in
-  the grammar of :mod:`envs.number_grammar` (ASCII decimals: no ``1_0``, no non-ASCII digits, no
+  the grammar of :mod:`envs.data.number_grammar` (ASCII decimals: no ``1_0``, no non-ASCII digits, no
   ``nan``/``inf``); :func:`existing_file`,
   :func:`existing_dir`, :func:`out_dir` (a folder that exists and is writable, or can be created; nothing
   is created here), :func:`json_file`, :func:`yaml_file` (parsed; errors name ``file:line:column``),
@@ -33,9 +33,9 @@ from typing import Any, NoReturn
 
 import yaml
 
-from envs import textfile
-from envs.number_grammar import parse_float, parse_int, shorten
-from envs.otb import TRACKER_SPLIT
+from envs.data import textfile
+from envs.data.number_grammar import parse_float, parse_int, shorten
+from envs.data.otb import TRACKER_SPLIT
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -104,7 +104,7 @@ def float_range(low: float | None = None, high: float | None = None, *,
 
 
 def _finite(text: str) -> float | None:
-    """The finite number ``text`` writes (:func:`envs.number_grammar.parse_float`), else None."""
+    """The finite number ``text`` writes (:func:`envs.data.number_grammar.parse_float`), else None."""
     try:
         return parse_float(text)
     except ValueError:
@@ -160,7 +160,7 @@ def out_dir(text: str) -> Path:
 
 
 def _read_text(path: Path) -> str:
-    """The UTF-8 text of the regular file ``path`` (bounded, :mod:`envs.textfile`); ValueError naming it."""
+    """The UTF-8 text of the regular file ``path`` (bounded, :mod:`envs.data.textfile`); ValueError naming it."""
     return textfile.read_text(path)
 
 
@@ -223,7 +223,7 @@ def key_values(flag: str, items: list[str], separators: str = "=:") -> dict[str,
 
 
 def tracker_set(text: str) -> tuple[str, ...]:
-    """``--trackers``: ``train`` or ``test`` (the tracker split ``envs.otb.TRACKER_SPLIT``) or comma-separated
+    """``--trackers``: ``train`` or ``test`` (the tracker split ``envs.data.otb.TRACKER_SPLIT``) or comma-separated
     tracker names (checked against the OTB data when the env is built).
 
     >>> tracker_set("SiamFC,STRUCK"), tracker_set("test")

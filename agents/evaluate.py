@@ -3,7 +3,7 @@
 Each test episode (an :class:`agents.splits.EpisodeSpec`, from :func:`evaluation_episodes`) is reset once with its
 pinned options; every policy chooses its action for it and each action is scored by ``env.unwrapped.score``
 (one call per action, so a method's scores never depend on which other methods are compared). Two methods are
-estimates of their own, scored on the same measurements with ``envs.scoring.score_estimates``: ``raw``, the
+estimates of their own, scored on the same measurements with ``envs.episodes.scoring.score_estimates``: ``raw``, the
 measurements themselves (no filter), and the Sage–Husa adaptive KF (:mod:`agents.adaptive`). So all methods see
 identical data (common random numbers).
 
@@ -28,9 +28,9 @@ from agents.baselines import (AmortisedPolicy, EpisodePolicy, GlobalPolicy, Grid
                               RuleEstimatedSigmaPolicy, RulePolicy, RuleTrueSigmaPolicy)
 from agents.episodes import EpisodeBank
 from agents.splits import EpisodeSpec, otb_episodes, split_seeds, train_seeds
-from envs import metrics
-from envs.boxes import cxcywh_to_xywh
-from envs.scoring import score_estimates
+from envs.data import metrics
+from envs.data.boxes import cxcywh_to_xywh
+from envs.episodes.scoring import score_estimates
 
 RAW = "raw"
 ADAPTIVE = "adaptive"

@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from envs.metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS  # noqa: E402
+from envs.data.metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS  # noqa: E402
 
 
 def _save(fig: plt.Figure, path: Path) -> None:

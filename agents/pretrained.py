@@ -10,17 +10,12 @@ Each tuner is a folder ``agents/pretrained/<name>/`` holding the files of a ``sc
 
 Names are the folders found there (``<source>_<backend>``, e.g. ``sim_ufir_cmn``; ``otb_tracker_<backend>`` for
 tracker output); a folder is added by copying a run's ``model.zip``, ``vecnormalize.json`` and ``config.yml``
-and its ``compare/summary.md`` into it. Loaded tuners are cached per process (the files are package data).
+and its ``compare/summary.md`` into it. :func:`agents.tune.load_pretrained` loads one (cached per process).
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from agents.tune import Tuner
 
 ROOT = Path(__file__).resolve().parent / "pretrained"
 FILES = ("model.zip", "vecnormalize.json", "config.yml", "summary.md")
@@ -49,15 +44,3 @@ def folder(name: str) -> Path:
 def summary(name: str) -> str:
     """The compare.py summary (markdown) the tuner ``name`` reached."""
     return (folder(name) / "summary.md").read_text(encoding="utf-8")
-
-
-def load(name: str) -> Tuner:
-    """The pretrained tuner ``name`` (:class:`agents.tune.Tuner`: policy, env config, action map), cached."""
-    return _load(name, folder(name))
-
-
-@lru_cache(maxsize=None)
-def _load(name: str, path: Path) -> Tuner:
-    from agents.tune import Tuner  # agents.tune imports this module
-
-    return Tuner.from_run(path, name=name)

@@ -17,7 +17,7 @@ import numpy as np
 
 from agents.records import by_method, episode_column, table
 from agents.stats import STATS, Resamples, ci, cluster_bootstrap_indices, fmt_ci
-from envs.otb import ATTRIBUTES
+from envs.data.otb import ATTRIBUTES
 
 REFERENCES = ("raw", "rule")
 

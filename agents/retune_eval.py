@@ -42,8 +42,8 @@ from agents.baselines import GridSearch, OraclePolicy, Policy, RulePolicy
 from agents.evaluate import ADAPTIVE, RAW, TRUE_KEYS
 from agents.imm import IMMConfig, imm_positions
 from agents.splits import EpisodeSpec
-from envs.features import measurement_features
-from envs.scoring import score_estimates
+from envs.episodes.features import measurement_features
+from envs.episodes.scoring import score_estimates
 
 ONESHOT_ORACLE, WINDOW_ORACLE, ONESHOT_LEARNED = "oneshot_oracle", "window_oracle", "oneshot_learned"
 ONESHOT_LEARNED_ONLINE = "oneshot_learned_online"

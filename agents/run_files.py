@@ -30,7 +30,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents import cli
-from envs import textfile
+from envs.data import textfile
 
 STATS_FORMAT = "bboxtune-vecnormalize-1"
 STATS = "vecnormalize.json"

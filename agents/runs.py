@@ -75,9 +75,8 @@ def make_vec(env_id: str, env_kwargs: dict[str, Any], *, split: str, n_envs: int
 
 
 def _registered_make(env_id: str, **kwargs: Any) -> gym.Env:
-    """``gym.make`` after ``import envs`` (SubprocVecEnv workers may not have imported it yet)."""
-    import envs  # noqa: F401
-
+    """``gym.make`` in a SubprocVecEnv worker: unpickling this function imports this module, whose ``import envs``
+    registers the env ids there."""
     return gym.make(env_id, **kwargs)
 
 

@@ -36,8 +36,8 @@ from stable_baselines3.common.vec_env import VecEnv
 from agents.algos import algo_class
 from agents.hyperparams import constructor_kwargs, load_hyperparams
 from agents.run_files import RunError
-from envs import textfile
-from envs.config import EnvConfig
+from envs.data import textfile
+from envs.episodes.config import EnvConfig
 
 MAX_MODEL_BYTES = 2**30  # a model.zip of this project is a few hundred kB
 RUN_ENV = "bboxtune_run_env"  # model attribute saved in data: {"env_id": ..., "env_kwargs": ...}

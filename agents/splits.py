@@ -32,7 +32,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs.config import SPLITS
+from envs.episodes.config import SPLITS
 
 TEST_BASE = 10**9
 VAL_BASE = 2 * 10**9

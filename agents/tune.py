@@ -23,7 +23,7 @@ directory, load it once with :meth:`Tuner.from_run` and call its methods.
 
 The observation is computed by the env's own code for an episode of the tuner's config
 (:meth:`Tuner.observe`): the source's fixed rule (:func:`rule_nominal`: its nominal σ and N_opt), that rule's
-filter run (:func:`envs.scoring.run_tracks`), then :func:`envs.features.measurement_features` — so it equals
+filter run (:func:`envs.episodes.scoring.run_tracks`), then :func:`envs.episodes.features.measurement_features` — so it equals
 the env's reset observation on the same measurements (tested), and the parameters equal what ``env.step``
 applies for the policy's action. Smoothed boxes are the back end's position estimates; frames before the
 first measured one have no estimate (NaN rows), later missing frames are predicted.
@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -45,13 +46,15 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from agents import pretrained
-from envs.actions import ACCEPTS, ActionMap, Nominal
-from envs.boxes import cxcywh_to_xywh, xywh_to_cxcywh
-from envs.config import EnvConfig, check_real
-from envs.features import box_scale, measurement_features
-from envs.scoring import run_positions, run_tracks
-from envs.sources import Episode, SimSource
-from envs.sources import rule_nominal as source_nominal  # the sources' own rule for given σ
+from envs.episodes.actions import ACCEPTS, ActionMap, Nominal
+from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from envs.episodes.config import EnvConfig, check_real
+from envs.episodes.features import box_scale, measurement_features
+from envs.episodes.scoring import run_positions, run_tracks
+from envs.episodes.episode import Episode
+from envs.episodes.sources import SimSource
+from envs.episodes.video_source import VideoSettings
+from envs.episodes.episode import rule_nominal as source_nominal  # the sources' own rule for given σ
 from envs.track_env import TrackEnv
 
 if TYPE_CHECKING:
@@ -108,8 +111,6 @@ def rule_nominal(cfg: EnvConfig, y: np.ndarray, tau: float) -> Nominal:
         sim = SimSource(cfg)
         return source_nominal(cfg, sim.sigma_v_nominal, sim.sigma_w_nominal, tau)
     if cfg.source == "video":
-        from envs.video.source import VideoSettings
-
         rel_v, rel_w = VideoSettings.from_config(cfg).nominal_rel
     else:
         rel_v, rel_w = cfg.otb_sigma_v_rel, cfg.otb_sigma_w_rel
@@ -138,7 +139,7 @@ def spaces_venv(cfg: dict[str, Any], where: Path) -> DummyVecEnv:
 class Observation:
     """What the tuner sees of one track: the env's observation, the rule's parameters, the measurements."""
 
-    obs: np.ndarray  # (n_features,) float32, envs.features.FEATURE_NAMES
+    obs: np.ndarray  # (n_features,) float32, envs.episodes.features.FEATURE_NAMES
     nominal: Nominal  # the fixed rule's parameters (what the action map scales)
     y: np.ndarray  # (T, 4) cx, cy, w, h px, NaN rows missing
     tau: float  # s
@@ -208,6 +209,17 @@ class Tuner:
         return cxcywh_to_xywh(est)
 
 
+def load_pretrained(name: str) -> Tuner:
+    """The pretrained tuner ``name`` (:mod:`agents.pretrained`; ValueError listing the available ones or naming a
+    missing file), cached per process and folder (the files are package data)."""
+    return _load_folder(name, pretrained.folder(name))
+
+
+@lru_cache(maxsize=None)
+def _load_folder(name: str, path: Path) -> Tuner:
+    return Tuner.from_run(path, name=name)
+
+
 def load_tuner(backend: str | None = None, pretrained_name: str | None = None,
                model: str | os.PathLike | None = None) -> Tuner:
     """The tuner :func:`tune` uses for these arguments (module docstring; ValueError naming the argument)."""
@@ -216,7 +228,7 @@ def load_tuner(backend: str | None = None, pretrained_name: str | None = None,
     if model is not None:
         tuner = Tuner.from_run(model)
     else:
-        tuner = pretrained.load(pretrained_name or (f"otb_tracker_{backend}" if backend else DEFAULT_PRETRAINED))
+        tuner = load_pretrained(pretrained_name or (f"otb_tracker_{backend}" if backend else DEFAULT_PRETRAINED))
     if backend is not None and backend != tuner.backend:
         raise ValueError(f"backend={backend!r}, but the tuner {tuner.name} tunes {tuner.backend!r}")
     return tuner

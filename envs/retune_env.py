@@ -7,10 +7,10 @@ from typing import Any
 import numpy as np
 
 import filters
-from envs.actions import ACCEPTS
-from envs.config import EnvConfig
-from envs.features import WINDOW_FEATURE_NAMES, measurement_features, window_features
-from envs.scoring import SCORE_KEYS, box_model, reward_from, run_positions, score_estimates
+from envs.episodes.actions import ACCEPTS
+from envs.episodes.config import EnvConfig
+from envs.episodes.features import WINDOW_FEATURE_NAMES, measurement_features, window_features
+from envs.episodes.scoring import SCORE_KEYS, box_model, reward_from, run_positions, score_estimates
 from envs.track_env import TrackEnv, check_reset_args
 from filters.fir_core import FIRFilter
 
@@ -32,7 +32,7 @@ class FilterRetuneEnv(TrackEnv):
       usual start-up rule (growing horizon) apply.
 
     ## Action Space
-    As FilterTune-v0: ``Box(-1, 1, (d,), float32)`` mapped by ``envs.actions.ActionMap``; ``step`` takes
+    As FilterTune-v0: ``Box(-1, 1, (d,), float32)`` mapped by ``envs.episodes.actions.ActionMap``; ``step`` takes
     exactly one action of shape (d,), finite, within [-1, 1] (1e-6 float32 tolerance, clipped); anything
     else raises ``ValueError`` (``TypeError`` for a non-numeric dtype) and leaves the episode where it was.
 
@@ -41,9 +41,9 @@ class FilterRetuneEnv(TrackEnv):
 
     | index        | what                                                                                 | unit |
     |--------------|--------------------------------------------------------------------------------------|------|
-    | 0–19         | ``envs.features.FEATURE_NAMES`` on the last ``history`` frames before the window      | see there |
+    | 0–19         | ``envs.episodes.features.FEATURE_NAMES`` on the last ``history`` frames before the window      | see there |
     |              | (default 100; the fixed rule's estimates on them are the pilot residual)              |      |
-    | 20–23        | ``envs.features.WINDOW_FEATURE_NAMES``: the filter's residuals y − ŷ in the window just | –    |
+    | 20–23        | ``envs.episodes.features.WINDOW_FEATURE_NAMES``: the filter's residuals y − ŷ in the window just | –    |
     |              | filtered (log variance / scale², lag-1 autocorrelation, log variance minus the rule's, |      |
     |              | share of missing frames) — how the current parameters are doing                      |      |
     | 24 … 23 + d  | the current action (the rule's after the warm-up)                                     | [-1, 1] |
@@ -84,15 +84,15 @@ class FilterRetuneEnv(TrackEnv):
     (start, end) and ``track`` (as at reset); the last step adds ``track_rmse`` and ``track_rule_rmse``
     over the whole track and ``scenario``, the true scenario (as in FilterTune-v0; with
     ``scenario="nonstationary"`` also the switch times and regimes, manoeuvres and gaps,
-    :mod:`envs.sim_regimes`). The truth comes only with the last step because every step is a decision about
+    :mod:`envs.data.sim_regimes`). The truth comes only with the last step because every step is a decision about
     the same track: revealing it earlier would hand it to the later decisions.
 
     ## Arguments
-    Those of FilterTune-v0 (``envs.config.EnvConfig``, checked the same way; ``trackers``, ``mix_weights``
+    Those of FilterTune-v0 (``envs.episodes.config.EnvConfig``, checked the same way; ``trackers``, ``mix_weights``
     and ``source="mix"`` included: every part of a mix draws episodes of at least two windows, and the sim
     part's ``track_length`` must allow that); ``window``, ``history`` and ``retune_reward`` are used here.
     ``scenario="nonstationary"`` gives simulated tracks whose right parameters change within the track
-    (regime switches of ψ and σ_ξ, manoeuvre bursts, occlusion gaps: :mod:`envs.sim_regimes`), where
+    (regime switches of ψ and σ_ξ, manoeuvre bursts, occlusion gaps: :mod:`envs.data.sim_regimes`), where
     re-tuning has something to gain.
 
     >>> import gymnasium as gym, envs
@@ -200,7 +200,7 @@ class FilterRetuneEnv(TrackEnv):
         start to the track's end (continuing from the current filter state, in one vectorised run; the same as
         stepping with the action to the end): ``reward`` (what stepping to the end would return in all: with
         "track" rewards the change of the track's reward, else the reward on those frames), the
-        ``envs.scoring.SCORE_KEYS`` scores on those frames, ``params`` and ``estimates`` (A, T − start, 4). Does not advance
+        ``envs.episodes.scoring.SCORE_KEYS`` scores on those frames, ``params`` and ``estimates`` (A, T − start, 4). Does not advance
         the episode. One-shot tuning (one action from now on) is a search over this."""
         if self.episode is None or self._start >= len(self.episode.y):
             raise RuntimeError("no window to score: call reset()")

@@ -16,10 +16,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs.actions import ACCEPTS, K_AXIS, ActionMap
-from envs.config import EnvConfig
+from envs.episodes.actions import ACCEPTS, K_AXIS, ActionMap
+from envs.episodes.config import EnvConfig
 from envs.render import draw_episode
-from envs.sources import Episode, make_source
+from envs.episodes.episode import Episode
+from envs.episodes.features import FEATURE_NAMES
+from envs.episodes.sources import make_source
 
 RESET_OPTIONS = ("sequence", "noise_seed", "tracker")
 
@@ -64,8 +66,6 @@ class TrackEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
 
     def __init__(self, n_extra_obs: int, render_mode: str | None = None, **kwargs: Any) -> None:
-        from envs.features import FEATURE_NAMES
-
         if render_mode is not None and not isinstance(render_mode, str):
             raise TypeError(f"render_mode={render_mode!r} has type {type(render_mode).__name__}; allowed: None, 'rgb_array'")
         if render_mode not in (None, "rgb_array"):

@@ -7,10 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from envs.features import measurement_features
-from envs.scoring import (SCORE_KEYS, reference_scores, reward_from, run_positions, run_tracks, score_estimates,
+from envs.episodes.features import measurement_features
+from envs.episodes.scoring import (SCORE_KEYS, reference_scores, reward_from, run_positions, run_tracks, score_estimates,
                            score_tracks)
-from envs.sources import Episode
+from envs.episodes.episode import Episode
 from envs.track_env import TrackEnv, check_reset_args
 
 
@@ -28,7 +28,7 @@ class FilterTuneEnv(TrackEnv):
 
     ## Action Space
     ``Box(-1, 1, (d,), float32)``, one entry per name in ``tune`` (default per back end:
-    ``envs.actions.DEFAULT_TUNE``, e.g. ``("psi", "horizon")`` for ``ufir_cmn``):
+    ``envs.episodes.actions.DEFAULT_TUNE``, e.g. ``("psi", "horizon")`` for ``ufir_cmn``):
 
     | parameter | mapping from a ∈ [-1, 1]                         | range                      |
     |-----------|--------------------------------------------------|----------------------------|
@@ -37,7 +37,7 @@ class FilterTuneEnv(TrackEnv):
     | sigma_w   | σ_w = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]     |
     | sigma_v   | σ_v = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]     |
 
-    ``envs.actions.ActionMap`` implements it both ways (``to_params`` / ``to_actions``). ``step`` takes
+    ``envs.episodes.actions.ActionMap`` implements it both ways (``to_params`` / ``to_actions``). ``step`` takes
     exactly one action of shape (d,): any other shape (a batch (A, d) included) raises ``ValueError``, as do
     NaN/inf entries and entries outside [-1, 1] (entries within 1e-6 of it are accepted as float32
     round-off and clipped — nothing else is clipped); a non-numeric or bool dtype raises ``TypeError``.
@@ -55,7 +55,7 @@ class FilterTuneEnv(TrackEnv):
 
     ## Observation Space
     ``Box(-inf, inf, (20,), float32)``: features of the measured boxes only, never the truth or the true
-    ψ/σ — the table in ``envs.features`` (log box scale [log px], log τ [log s], log-variances of first and
+    ψ/σ — the table in ``envs.episodes.features`` (log box scale [log px], log τ [log s], log-variances of first and
     second differences of centre and size relative to scale², lag-1..3 autocorrelations of the differences,
     log N_opt from nominal and from estimated σ [log frames], the σ estimates, residual statistics of the
     fixed-rule filter, fraction of missing frames, log T).
@@ -91,7 +91,7 @@ class FilterTuneEnv(TrackEnv):
 
     Every episode is a pure function of its noise seed (and sequence, tracker); without options the seed is
     the next draw from ``np_random``; the sequence, tracker and mix part come from independent generators
-    seeded with it (``envs.sources``), so passing ``info["track"]``'s sequence, noise_seed and tracker as
+    seeded with it (``envs.episodes.sources``), so passing ``info["track"]``'s sequence, noise_seed and tracker as
     options replays it. For speed the ``sim`` source draws and prepares (simulation, rule run, rule
     scores, observation) a block of up to 64 unpinned episodes at once — batched over the block — and hands
     them out one per reset: the episodes, their order and every value are the same as one at a time (the
@@ -113,16 +113,16 @@ class FilterTuneEnv(TrackEnv):
     arrays (A,) plus ``reward``. A step after the end raises ``RuntimeError`` (call ``reset``).
 
     ## Arguments
-    Keyword arguments of ``gym.make`` are the fields of ``envs.config.EnvConfig`` plus ``render_mode``
+    Keyword arguments of ``gym.make`` are the fields of ``envs.episodes.config.EnvConfig`` plus ``render_mode``
     (``None`` or ``"rgb_array"``). Each is checked by type and range (its comment there states the allowed
     values): an unknown key or a wrong type raises ``TypeError``, a value out of range ``ValueError``, both
     naming the argument. ``track_length`` (sim and video) is at most 100,000 frames
-    (``envs.config.TRACK_LENGTH_MAX``); simulated box sizes are reflected at ``box_size_bounds`` (default
-    4 to 1000 px, ``envs.simulate``), so they stay plausible at any length.
+    (``envs.episodes.config.TRACK_LENGTH_MAX``); simulated box sizes are reflected at ``box_size_bounds`` (default
+    4 to 1000 px, ``envs.data.simulate``), so they stay plausible at any length.
 
     ``trackers`` (``otb_tracker``, ``mix``): the tracker names an episode's tracker is drawn from (each must
     exist under the OTB root; None → ``(tracker,)``, the single-tracker env of before). The default tracker
-    split is ``envs.otb.TRACKER_SPLIT``: ``"test"`` = SiamRPN++, CFNet, STRUCK, MDNet (held out, never
+    split is ``envs.data.otb.TRACKER_SPLIT``: ``"test"`` = SiamRPN++, CFNet, STRUCK, MDNet (held out, never
     trained on), ``"train"`` = the other 9. ``mix_weights`` (sim, otb, otb_tracker), default (1, 1, 1):
     each part's relative probability (reals >= 0, sum > 0; a part of weight 0 is never drawn and needs no
     data — OTB parts need ``otb_root`` / $OTB_ROOT). Arguments the source would not use are refused, not
@@ -133,7 +133,7 @@ class FilterTuneEnv(TrackEnv):
     σ_w, σ_ξ per track; ``"nonstationary"`` keeps that draw as the first regime and adds, within the track,
     1–3 switches of ψ and σ_ξ (redrawn from ``psi_range`` / ``sigma_xi_range``, at frames in [T/10, 9T/10)),
     0–3 manoeuvre bursts (σ_w × 10 for 20–100 frames) and 0–2 occlusion gaps (5–30 missing frames), all at
-    random times (:mod:`envs.sim_regimes`). The schedule is revealed with the truth, in the step's
+    random times (:mod:`envs.data.sim_regimes`). The schedule is revealed with the truth, in the step's
     ``info["scenario"]`` (``regimes``, ``manoeuvres``, ``gaps``; ``psi`` / ``sigma_xi`` there are the
     frame-weighted mean ψ and rms σ_ξ), never in the observation.
 

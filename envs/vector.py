@@ -3,7 +3,7 @@
 FilterTune-v0 is a contextual bandit (one step per track), so n envs step in lockstep and all auto-reset after
 every step. :class:`TuneBatch` does that work once for all n tracks — one vectorised simulation
 (``Source.draw_many``), one run of the fixed rule and one feature pass (``FilterTuneEnv.prepare``), one
-batched filter run of the n actions (``envs.scoring.run_tracks``: one call per track length; the FIR family
+batched filter run of the n actions (``envs.episodes.scoring.run_tracks``: one call per track length; the FIR family
 and the Kalman filters run in frame units, so tracks of different τ share it) and one scoring pass — where n
 separate envs would each pay for their own Python loop over time. Two faces over it:
 
@@ -40,7 +40,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs.scoring import SCORE_KEYS, reward_from, run_tracks, score_tracks
+from envs.episodes.scoring import SCORE_KEYS, reward_from, run_tracks, score_tracks
 from envs.tune_env import FilterTuneEnv
 
 TUNE_ID = "bboxtune/FilterTune-v0"
@@ -55,7 +55,7 @@ def any_noise_seeds(rng: np.random.Generator, n: int) -> np.ndarray:
 
 class TuneBatch:
     """n FilterTune-v0 episodes at once: :meth:`reset` draws and prepares n new tracks, :meth:`step` scores one
-    action per track. ``env_kwargs`` are ``gym.make``'s (``envs.config.EnvConfig`` fields), checked the same
+    action per track. ``env_kwargs`` are ``gym.make``'s (``envs.episodes.config.EnvConfig`` fields), checked the same
     way; ``self.env`` is the single env whose configuration, source and rule the batch uses."""
 
     def __init__(self, n_envs: int, noise_seeds: NoiseSeeds = any_noise_seeds, **env_kwargs: Any) -> None:

@@ -32,7 +32,7 @@ import filters
 from agents.cli import ArgumentParser, argument_errors, nonnegative_int, positive_int
 from agents.runs import make_vec
 from bench_filters import filterpy_loop
-from envs.config import EnvConfig
+from envs.episodes.config import EnvConfig
 
 
 def rates(count: int, fn, repeat: int) -> tuple[float, float]:
@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> None:
     env.reset(seed=args.seed)
     ep = u.episode
     params = u.action_map.to_params(actions[0][0], ep.nominal)
-    from envs.scoring import run_positions
+    from envs.episodes.scoring import run_positions
 
     filter_rate, _ = rates(args.episodes, lambda r: [run_positions(args.backend, ep.y, ep.tau, params) for _ in range(args.episodes)],
                            args.repeat)

@@ -153,7 +153,7 @@ def long_section(args: argparse.Namespace) -> None:
 
 
 def speed_sections(args: argparse.Namespace) -> None:
-    from envs.simulate import PRESETS, simulate
+    from envs.data.simulate import PRESETS, simulate
     from filters.ufir import ufir_iterative
 
     ref_tracks = args.tracks if args.ref_tracks is None else min(args.ref_tracks, args.tracks)

@@ -7,7 +7,7 @@
     python scripts/compare.py --model runs/ppo_s0 runs/ppo_s1 runs/ppo_s2 --out runs/ppo_seeds   # across training seeds
 
 The env: the run's own (config.yml's env id and env_kwargs) unless --env / --env-kwargs KEY=VALUE ... change it
-(any envs.config.EnvConfig field, YAML values, KEY:VALUE also accepted, split at the first = or :; checked before
+(any envs.episodes.config.EnvConfig field, YAML values, KEY:VALUE also accepted, split at the first = or :; checked before
 any work). The model must fit the evaluation env: equal observation and action spaces and actions that set the
 same parameters of the same back end (agents.safe_load.check_env_match); everything else may differ (transfer).
 
@@ -79,7 +79,7 @@ from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env
 from agents.safe_load import check_env_match
 from agents.seeds_report import profile_curves, seeds_section
 from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
-from envs.config import EnvConfig
+from envs.episodes.config import EnvConfig
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"
 RETUNE_ENV = "bboxtune/FilterRetune-v0"
@@ -97,11 +97,11 @@ def build_parser() -> ArgumentParser:
                         "them with stratified bootstrap CIs (agents.seeds_report) and performance_profile.png; needs --out")
     p.add_argument("--env", default=None, metavar="ID", help=f"env id (default: the run's; one of {ENVS}, the run's kind)")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
-                   help="override the run's env arguments (envs.config.EnvConfig fields, YAML values; KEY:VALUE also "
+                   help="override the run's env arguments (envs.episodes.config.EnvConfig fields, YAML values; KEY:VALUE also "
                         "accepted), e.g. source=otb track_length=100; the split is --split")
     p.add_argument("--trackers", type=tracker_set, default=None, metavar="SET",
                    help="source otb_tracker: score these trackers' output instead of the run's: 'test' (the held-out "
-                        "trackers of envs.otb.TRACKER_SPLIT), 'train' or comma-separated names")
+                        "trackers of envs.data.otb.TRACKER_SPLIT), 'train' or comma-separated names")
     p.add_argument("--split", default="test", choices=SPLITS, help="which split's episodes (and OTB sequences) are scored")
     p.add_argument("--episodes", type=int_range(1, SPLIT_SIZE), default=None,
                    help=f"sim / video: episodes scored (default {DEFAULT_EPISODES}); OTB sources enumerate theirs "

@@ -39,7 +39,7 @@ import reproduce_otb as otb
 import reproduce_seed000 as seed000
 import reproduce_seed004 as seed004
 from agents.cli import ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int, out_dir
-from envs.otb import OTB_ROOT_ENV, OTBDataset
+from envs.data.otb import OTB_ROOT_ENV, OTBDataset
 from reproduce_common import Section, Settings, make_settings, save_figure, write_atomic
 
 PARTS = {"seed000": seed000, "seed004": seed004, "otb": otb}  # part → module; reproduce_<part>.py runs it alone

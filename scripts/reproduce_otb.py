@@ -21,9 +21,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import filters
-from envs.boxes import xywh_to_cxcywh
-from envs.otb import OTBDataset
-from envs.simulate import gauss_markov
+from envs.data.boxes import xywh_to_cxcywh
+from envs.data.otb import OTBDataset
+from envs.data.simulate import gauss_markov
 from reproduce_common import Section, Settings, fmt, md_table, param_sweep, pooled_rmse
 
 

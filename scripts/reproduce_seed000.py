@@ -1,6 +1,6 @@
 """Seed 000 (Shmaliy et al., CCE 2020) §II-D: Fig. 2 (RMSE vs ψ) and the measured N_opt(ψ) of UFIR-CMN.
 
-Set-up (seed 000 §II-D, ``envs.simulate.PRESETS["seed000_two_state"]``): two-state track, σ_w = 50 m/s²
+Set-up (seed 000 §II-D, ``envs.data.simulate.PRESETS["seed000_two_state"]``): two-state track, σ_w = 50 m/s²
 (acceleration, B = [τ²/2, τ]ᵀ), CMN v_n = ψ v_{n−1} + ξ_n with σ_ξ = 4 m, τ = 0.05 s, 2000 points, x0 = [1, 1]ᵀ.
 The filters get Q = p²σ_w² B Bᵀ and R = q²σ_ξ² (the paper's error factors p, q; p = q = 1 is Fig. 2a). The
 standard KF uses the same R (seed 000: Algorithm 1 with Ψ = 0 is the standard KF). UFIR needs no noise
@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import filters
-from envs.simulate import PRESETS, simulate
+from envs.data.simulate import PRESETS, simulate
 from reproduce_common import Section, Settings, fmt, md_table, param_sweep, pooled_rmse
 
 SCENARIO = PRESETS["seed000_two_state"]

@@ -1,6 +1,6 @@
 """Seed 004 (Mo, Lee, Ahn, Lim, "FIR Filters for Visual Object Tracking") Table I: KF vs Kwon's FIR at δ = 0, 10.
 
-Set-up (``envs.simulate.PRESETS["seed004_delta0"/"seed004_delta10"]``): a 2-D centroid (x, y) constant-velocity
+Set-up (``envs.data.simulate.PRESETS["seed004_delta0"/"seed004_delta10"]``): a 2-D centroid (x, y) constant-velocity
 track in pixels, time in frames (τ = 1); the truth moves with F(τ + δ) while both filters assume F(τ) (seed 004
 eqs. 1, 4: δ is a sampling-time error in A). The paper gives no q, r, track length, or horizon N; the preset's
 σ_w = 0.2 px/frame², σ_ξ = 10 px (white noise), 500 frames are the tracks helper's choice, the filters get those
@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import filters
-from envs.simulate import PRESETS, simulate
+from envs.data.simulate import PRESETS, simulate
 from reproduce_common import Section, Settings, fmt, md_table, param_sweep
 
 CASES = (("seed004_delta0", 0.0), ("seed004_delta10", 10.0))  # (preset, δ in frames)

@@ -33,10 +33,10 @@ from tqdm import tqdm
 
 from agents import pretrained
 from agents.cli import ArgumentParser, HelpFormatter, argument_errors, existing_dir, float_range, out_dir
-from agents.tune import DEFAULT_PRETRAINED, TAU_RANGE, Tuner, check_boxes
-from envs.actions import ACCEPTS
-from envs.otb import OTBDataset
-from envs.otb_io import read_boxes
+from agents.tune import DEFAULT_PRETRAINED, TAU_RANGE, Tuner, check_boxes, load_pretrained
+from envs.episodes.actions import ACCEPTS
+from envs.data.otb import OTBDataset
+from envs.data.otb_io import read_boxes
 from otb_eval import evaluate
 from video_common import csv_text, folder_in_use, publish_folder
 
@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     with argument_errors(parser, "--results"):
         results = read_results(args.results)
     with argument_errors(parser, "--model" if args.model else "--pretrained"):
-        tuner = Tuner.from_run(args.model) if args.model else pretrained.load(args.pretrained or DEFAULT_PRETRAINED)
+        tuner = Tuner.from_run(args.model) if args.model else load_pretrained(args.pretrained or DEFAULT_PRETRAINED)
     tau = args.tau if args.tau is not None else tuner.config.otb_tau
     raw = None
     if args.otb_root is not None:

@@ -24,7 +24,7 @@ from agents.cli import ArgumentParser, HelpFormatter, float_range, key_values, n
 from agents.run_files import RunError
 from agents.runs import check_free
 from agents.sweep import SweepSpec, run_sweep
-from envs.config import SOURCES
+from envs.episodes.config import SOURCES
 
 SMOKE = SweepSpec(seeds=(0, 1), timesteps=128,
                   train_args=("--hyperparams", "n_envs:8", "n_steps:8", "batch_size:32", "--env-kwargs", "track_length=100",

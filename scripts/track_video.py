@@ -7,7 +7,7 @@
     python scripts/track_video.py --synthetic --detector orb --tuned runs/video_table/tuned/orb-kf.json
 
 Filter parameters: the fixed rule (nominal σ = the detector's calibrated relative σ × the measured box scale,
-N = N_opt; :mod:`envs.video.source`) or, with ``--tuned MODEL`` (a ``tuned.json`` or a ``train.py`` run
+N = N_opt; :mod:`envs.episodes.video_source`) or, with ``--tuned MODEL`` (a ``tuned.json`` or a ``train.py`` run
 directory), the tuner's choice; ``--compensate`` estimates the camera motion from the frames and compensates
 it (:mod:`envs.video.camera`; UKF: seed 003 eq. 17, other back ends: camera-velocity input, eq. 18).
 
@@ -41,16 +41,17 @@ from agents.cli import (ArgumentParser, box_xywh, existing_dir, existing_file, i
                         out_dir)
 from agents.run_files import RunError, atomic_write
 from agents.runs import check_free
-from envs import metrics
-from envs.actions import ACCEPTS
-from envs.boxes import cxcywh_to_xywh, xywh_to_cxcywh
-from envs.config import EnvConfig
+from envs.data import metrics
+from envs.episodes.actions import ACCEPTS
+from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from envs.episodes.config import EnvConfig
 from envs.video.camera import frame_shift, run_compensated
-from envs.video.detectors import DETECTORS, make_detector, to_gray
+from envs.video.detector import to_gray
+from envs.video.detectors import DETECTORS, make_detector
 from envs.video.frames import otb_frames, video_file
-from envs.video.source import VideoSettings, VideoSource
+from envs.episodes.video_source import VideoSettings, VideoSource
 from envs.video.synthetic import VideoRanges, synthetic_video
-from envs.video.tuning import load_tuner, rule_params
+from agents.video_tuning import load_tuner, rule_params
 
 _GREEN, _RED, _BLUE = (40, 170, 40), (40, 40, 220), (230, 80, 40)  # BGR
 

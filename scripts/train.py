@@ -60,8 +60,8 @@ from agents.run_files import (PICKLED_REPLAY, REPLAY, STATS, RunError, atomic_wr
 from agents.runs import (CONFIG, ENV_ERRORS, RESUME_KEYS, RunLock, check_free, claim_run_dir, load_config,
                          make_env, make_vec)
 from agents.safe_load import load_model, stamp
-from envs.config import SOURCES
-from envs.otb import TRACKER_SPLIT
+from envs.episodes.config import SOURCES
+from envs.data.otb import TRACKER_SPLIT
 
 DEFAULT_ENV = "bboxtune/FilterTune-v0"
 RESUME_FLAGS = {"--resume", "--timesteps", "--trust-pickle"}  # the only flags a resume takes: the rest is config.yml's
@@ -99,10 +99,10 @@ def build_parser() -> ArgumentParser:
                    help="override entries of agents/hyperparams/<algo>.yml (YAML values), e.g. n_steps:64 learning_rate:lin_1e-3")
     p.add_argument("--trackers", type=tracker_set, default=None, metavar="SET",
                    help="source otb_tracker (or mix): the trackers whose output episodes replay, one drawn per episode: "
-                        "'train' or 'test' of the tracker split (envs.otb.TRACKER_SPLIT) or comma-separated names "
+                        "'train' or 'test' of the tracker split (envs.data.otb.TRACKER_SPLIT) or comma-separated names "
                         "(default with those sources: 'train', unless --env-kwargs sets tracker or trackers)")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
-                   help="more env arguments (envs.config.EnvConfig fields, YAML values; KEY=VALUE or KEY:VALUE, split "
+                   help="more env arguments (envs.episodes.config.EnvConfig fields, YAML values; KEY=VALUE or KEY:VALUE, split "
                         "at the first = or :), e.g. track_length=200")
     return p
 

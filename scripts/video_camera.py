@@ -37,10 +37,10 @@ import filters  # noqa: E402
 from agents.cli import (ArgumentParser, argument_errors, nonnegative_int, out_dir, positive_float,  # noqa: E402
                         positive_int)
 from agents.run_files import atomic_write  # noqa: E402
-from envs.config import EnvConfig  # noqa: E402
+from envs.episodes.config import EnvConfig  # noqa: E402
 from envs.video.camera import UKF_CAMERA, background_shift, run_compensated  # noqa: E402
 from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
-from envs.video.source import VideoSettings, VideoSource  # noqa: E402
+from envs.episodes.video_source import VideoSettings, VideoSource  # noqa: E402
 from envs.video.synthetic import VideoRanges, synthetic_video  # noqa: E402
 
 SEED_OFFSET = 3_000_000

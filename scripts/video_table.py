@@ -6,10 +6,10 @@
     python scripts/video_table.py --tuned runs/ppo_ufir_cmn_video_s0     # a train.py run (or a tuned.json)
 
 Videos: test split ``test-00000`` … (generator seeds 2 000 000 + i) and, for the tuned filter, the train split
-``train-00000`` … (seeds 0 + i) of :mod:`envs.video.source` — never the same videos. For every detector and
+``train-00000`` … (seeds 0 + i) of :mod:`envs.episodes.video_source` — never the same videos. For every detector and
 back end: ``raw`` = the detector's boxes (missing frames count as failures), ``rule`` = the filter with the
 fixed rule's parameters (nominal σ of the detector, N = N_opt), ``tuned`` = one action for the whole set,
-grid-searched on the training videos for the best mean success AUC (:func:`envs.video.tuning.grid_tune`), or
+grid-searched on the training videos for the best mean success AUC (:func:`agents.video_tuning.grid_tune`), or
 the policy / action of ``--tuned``.
 
 Writes into ``--out`` (absent or empty; the folder appears complete at the end of the run, or not at all):
@@ -32,14 +32,14 @@ from video_common import bootstrap_ci, csv_text, folder_in_use, json_text, publi
 import filters
 from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int,
                         out_dir)
-from envs.config import TRACK_LENGTH_MAX, EnvConfig
-from envs.scoring import run_positions, score_estimates
+from envs.episodes.config import TRACK_LENGTH_MAX, EnvConfig
+from envs.episodes.scoring import run_positions, score_estimates
 from envs.video.detectors import DETECTORS
-from envs.video.source import VideoSettings, VideoSource
-from envs.video.tuning import Tuner, action_map, grid_tune, load_tuner, rule_params
+from envs.episodes.video_source import VideoSettings, VideoSource
+from agents.video_tuning import Tuner, action_map, grid_tune, load_tuner, rule_params
 
 METHODS = ("raw", "rule", "tuned")
-MAX_VIDEOS = 1_000_000  # videos per split (envs.video.source.VideoSettings.video_pool)
+MAX_VIDEOS = 1_000_000  # videos per split (envs.episodes.video_source.VideoSettings.video_pool)
 MAX_CANDIDATES = 10_000  # grid points per back end (each one filters every training video)
 
 

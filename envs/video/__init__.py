@@ -1,11 +1,12 @@
-"""Video front end: frames → detections → filter → scored boxes.
+"""Video front end: frames → detections (one box per frame). No Gymnasium and nothing from the layers above
+(:class:`~envs.episodes.video_source.VideoSource` turns detected videos into episodes; :mod:`agents.video_tuning`
+chooses a filter's parameters for them).
 
 * :mod:`envs.video.synthetic` — seeded synthetic videos with exact ground-truth boxes;
 * :mod:`envs.video.frames` — frames from a video file or an OTB image folder;
-* :mod:`envs.video.detectors` / :mod:`envs.video.matching` — OpenCV detectors (background subtraction,
-  MOG2, region labelling; template matching, SIFT, ORB) returning one xywh box per frame, NaN when
-  nothing is found;
-* :mod:`envs.video.camera` — global camera-motion estimate and camera-velocity-input compensation;
-* :mod:`envs.video.source` — :class:`~envs.video.source.VideoSource`, episodes for the environments;
-* :mod:`envs.video.tuning` — rule / grid-searched / trained filter parameters for video episodes.
+* :mod:`envs.video.detector` — the :class:`~envs.video.detector.Detector` interface and shared image helpers;
+  :mod:`envs.video.matching` — template matching, SIFT, ORB; :mod:`envs.video.detectors` — background
+  subtraction, MOG2, region labelling, and the registry (``DETECTORS``, ``make_detector``, ``detect_video``),
+  which imports every detector (never the other way round);
+* :mod:`envs.video.camera` — global camera-motion estimate and camera-velocity-input compensation.
 """

@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 
 import filters
-from envs.video.detectors import to_gray
+from envs.video.detector import to_gray
 
 _MAX_CORNERS = 300  # corners tracked per frame
 _RANSAC_PX = 0.5  # px, inlier threshold of the background similarity

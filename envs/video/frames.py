@@ -4,7 +4,7 @@ Frames are yielded lazily as BGR uint8 (H, W, 3), so long videos are never held 
 
 OTB folders: the boxes of a sequence start at image ``first_frame`` (``sequences.csv``; e.g. BlurCar1 at
 247, David at 300) and last ``n_frames`` images; :func:`otb_frames` looks the sequence up in an OTB data
-folder (``otb_root`` or ``$OTB_ROOT``, any layout :class:`envs.otb.OTBDataset` reads) and returns the
+folder (``otb_root`` or ``$OTB_ROOT``, any layout :class:`envs.data.otb.OTBDataset` reads) and returns the
 matching images together with the ground truth, falling back to ``groundtruth_rect.txt`` inside the folder
 and then to all images from 1 without ground truth. OTB boxes are 1-based (Matlab) pixel coordinates.
 """
@@ -19,6 +19,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+
+from envs.data.otb import OTBDataset, read_boxes
 
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff")
 
@@ -115,8 +117,6 @@ def otb_frames(folder: str | os.PathLike, *, sequence: str | None = None,
     ``sequence`` defaults to the folder's name (the parent's if ``folder`` is an ``img`` folder). The first
     frame and length come from the OTB data folder when it knows the sequence (``sequences.csv``), else
     from ``groundtruth_rect.txt`` in ``folder`` (first frame 1), else all images from 1, without truth."""
-    from envs.otb import OTBDataset, read_boxes
-
     path = Path(folder)
     name = sequence or (path.parent.name if path.name == "img" else path.name)
     if otb_root is not None or os.environ.get("OTB_ROOT"):

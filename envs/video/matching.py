@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from envs.video.detectors import NAN_BOX, Detector, check_range, to_gray
+from envs.video.detector import NAN_BOX, Detector, check_range, to_gray
 
 
 def _parabola_peak(left: float, centre: float, right: float) -> float:

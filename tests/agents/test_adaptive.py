@@ -7,7 +7,7 @@ import pytest
 
 import filters
 from agents.adaptive import SageHusaConfig, sage_husa_positions
-from envs.simulate import Scenario, simulate
+from envs.data.simulate import Scenario, simulate
 
 RNG = np.random.default_rng(1)
 Y = np.cumsum(RNG.normal(size=(3, 120, 4)), axis=1) + RNG.normal(size=(3, 120, 4))

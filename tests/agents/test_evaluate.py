@@ -9,7 +9,7 @@ import pytest
 from agents.baselines import GridSearch, RulePolicy
 from agents.evaluate import evaluate, evaluation_episodes, standard_policies
 from agents.splits import EpisodeSpec, eval_seeds, split_seeds
-from envs.scoring import score_estimates
+from envs.episodes.scoring import score_estimates
 
 from .conftest import ENV_ID, SHORT
 

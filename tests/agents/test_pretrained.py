@@ -12,6 +12,7 @@ import gymnasium as gym
 import pytest
 
 from agents import pretrained
+from agents.tune import load_pretrained
 from agents.runs import load_config
 
 REPO = Path(__file__).resolve().parents[2]
@@ -30,13 +31,13 @@ def test_each_tuner_loads_and_fits_the_env_of_its_config(name):
     kwargs = cfg["env_kwargs"]
     if kwargs.get("source") in OTB_SOURCES and not os.environ.get("OTB_ROOT"):
         pytest.skip(f"{name}: source {kwargs['source']} needs the OTB data (set OTB_ROOT)")
-    tuner = pretrained.load(name)
+    tuner = load_pretrained(name)
     env = gym.make(cfg["env_id"], **kwargs).unwrapped
     model = tuner.policy.model
     assert model.observation_space == env.observation_space and model.action_space == env.action_space
     assert tuner.action_map == env.action_map
     assert tuner.config == env.config and tuner.backend == kwargs["backend"]
-    assert pretrained.load(name) is tuner  # cached
+    assert load_pretrained(name) is tuner  # cached
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -56,7 +57,7 @@ def test_each_summary_is_the_compare_summary_of_its_env(name):
 
 def test_an_unknown_name_lists_the_available_ones():
     with pytest.raises(ValueError, match="'nope' is not installed; available: " + ", ".join(SHIPPED)):
-        pretrained.load("nope")
+        load_pretrained("nope")
 
 
 def test_folders_are_discovered_not_listed(tmp_path, monkeypatch):
@@ -65,10 +66,10 @@ def test_folders_are_discovered_not_listed(tmp_path, monkeypatch):
     (tmp_path / "notes.txt").write_text("not a tuner\n")
     monkeypatch.setattr(pretrained, "ROOT", tmp_path)
     assert pretrained.available() == ("my_tuner",)
-    tuner = pretrained.load("my_tuner")
+    tuner = load_pretrained("my_tuner")
     assert tuner.name == "my_tuner" and tuner.backend == "kf_cmn"
     with pytest.raises(ValueError, match="'sim_kf_cmn' is not installed; available: my_tuner$"):
-        pretrained.load("sim_kf_cmn")
+        load_pretrained("sim_kf_cmn")
 
 
 def test_an_incomplete_folder_names_what_it_lacks(tmp_path, monkeypatch):
@@ -76,14 +77,14 @@ def test_an_incomplete_folder_names_what_it_lacks(tmp_path, monkeypatch):
     (tmp_path / "partial" / "vecnormalize.json").unlink()
     monkeypatch.setattr(pretrained, "ROOT", tmp_path)
     with pytest.raises(ValueError, match="partial.* lacks vecnormalize.json"):
-        pretrained.load("partial")
+        load_pretrained("partial")
 
 
 def test_no_folder_means_none_available(tmp_path, monkeypatch):
     monkeypatch.setattr(pretrained, "ROOT", tmp_path / "absent")
     assert pretrained.available() == ()
     with pytest.raises(ValueError, match="available: none"):
-        pretrained.load("sim_ufir_cmn")
+        load_pretrained("sim_ufir_cmn")
 
 
 def test_the_package_data_ships_every_file():

@@ -12,7 +12,7 @@ from agents.report import summary_markdown
 from agents.report_retune import retune_tables
 from agents.retune_eval import OneShotLearned, OneShotOracle, Sequential, evaluate_retune, window_oracle
 from agents.splits import EpisodeSpec
-from envs.features import FEATURE_NAMES, WINDOW_FEATURE_NAMES
+from envs.episodes.features import FEATURE_NAMES, WINDOW_FEATURE_NAMES
 
 RETUNE, TUNE = "bboxtune/FilterRetune-v0", "bboxtune/FilterTune-v0"
 SMALL = GridSearch(budget=16, rounds=1)
@@ -94,7 +94,7 @@ def test_methods_on_the_same_episodes() -> None:
 def test_track_rewards_add_up_to_the_tracks_reward(backend: str, reward: str) -> None:
     """retune_reward="track" (default): the returns of an episode are its whole reward after the warm-up, so
     the sequential objective is the evaluation's metric; "window" keeps each window's own reward."""
-    from envs.scoring import reward_from, score_estimates
+    from envs.episodes.scoring import reward_from, score_estimates
 
     for kind in ("track", "window"):
         env = gym.make(RETUNE, backend=backend, scenario="nonstationary", reward=reward, retune_reward=kind)

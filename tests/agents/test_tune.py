@@ -14,8 +14,9 @@ import pytest
 
 import agents
 from agents import pretrained
+from agents.tune import load_pretrained
 from agents.run_files import RunError
-from envs.boxes import cxcywh_to_xywh
+from envs.data.boxes import cxcywh_to_xywh
 
 tune_module = sys.modules["agents.tune"]  # ``agents.tune`` is the function
 Tuner = tune_module.Tuner
@@ -34,7 +35,7 @@ def _track(seed: int = 0, T: int = 60) -> np.ndarray:
 
 @pytest.mark.parametrize("name", ["sim_ufir_cmn", "sim_kf_cmn"])
 def test_sim_episode_observation_params_and_estimate_are_the_envs(name):
-    tuner = pretrained.load(name)
+    tuner = load_pretrained(name)
     env = gym.make(ENV_ID, **dataclasses.asdict(tuner.config) | {"track_length": 120}).unwrapped  # shorter tracks
     tuner = dataclasses.replace(tuner, config=env.config)
     for seed in (3, 11):
@@ -56,7 +57,7 @@ def test_sim_episode_observation_params_and_estimate_are_the_envs(name):
 @pytest.mark.skipif(not os.environ.get("OTB_ROOT"), reason="needs the OTB data (set OTB_ROOT)")
 def test_otb_tracker_episode_from_the_result_file_is_the_envs_bit_for_bit():
     env = gym.make(ENV_ID, backend="ufir_cmn", source="otb_tracker", tracker="STRUCK", split="test").unwrapped
-    tuner = dataclasses.replace(pretrained.load("sim_ufir_cmn"), config=env.config)  # same spaces, this env's rule
+    tuner = dataclasses.replace(load_pretrained("sim_ufir_cmn"), config=env.config)  # same spaces, this env's rule
     dataset = env.source.dataset
     names = env.source.names[:3]
     for name in names:
@@ -74,7 +75,7 @@ def test_otb_tracker_episode_from_the_result_file_is_the_envs_bit_for_bit():
 
 
 def test_the_rule_nominal_of_the_otb_sources_scales_with_the_box():
-    cfg = dataclasses.replace(pretrained.load("sim_ufir_cmn").config, source="otb_tracker")
+    cfg = dataclasses.replace(load_pretrained("sim_ufir_cmn").config, source="otb_tracker")
     small, large = _track(1), _track(1) * 4
     a, b = tune_module.rule_nominal(cfg, small, 1 / 30), tune_module.rule_nominal(cfg, large, 1 / 30)
     assert b.sigma_v == pytest.approx(4 * a.sigma_v) and b.sigma_w == pytest.approx(4 * a.sigma_w)
@@ -89,7 +90,7 @@ def test_the_package_functions_use_the_named_tuner_and_the_run_directory_alike()
     assert params == agents.tune(boxes, tau, model=os.path.join(REPO, "docs/results/ufir_cmn/run"))
     assert params == agents.tune(boxes, tau, backend="ufir_cmn", pretrained="sim_ufir_cmn")
     smoothed = agents.smooth(boxes, tau, pretrained="sim_ufir_cmn")
-    np.testing.assert_array_equal(smoothed, pretrained.load("sim_ufir_cmn").smooth(boxes, tau, params))
+    np.testing.assert_array_equal(smoothed, load_pretrained("sim_ufir_cmn").smooth(boxes, tau, params))
     assert smoothed.shape == boxes.shape and np.abs(smoothed - boxes).max() > 0
 
 
@@ -182,6 +183,6 @@ def test_bad_tau_is_named(tau, error):
 
 
 def test_smooth_checks_given_params():
-    tuner = pretrained.load("sim_ufir_cmn")
+    tuner = load_pretrained("sim_ufir_cmn")
     with pytest.raises(ValueError, match=r"params has keys \['horizon'\]; back end ufir_cmn takes"):
         tuner.smooth(GOOD, 1 / 30, {"horizon": 5})

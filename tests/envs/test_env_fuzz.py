@@ -14,7 +14,7 @@ from gymnasium.envs.registration import load_env_creator
 from hypothesis import strategies as st
 
 import envs
-from envs.config import EnvConfig
+from envs.episodes.config import EnvConfig
 from envs.track_env import RESET_OPTIONS
 
 FIELDS = tuple(f.name for f in fields(EnvConfig)) + ("render_mode",)
@@ -151,7 +151,7 @@ def _log_pair(low: float, high: float) -> st.SearchStrategy:
 @st.composite
 def valid_config(draw: st.DrawFn) -> dict:
     """Any combination of allowed sim-source values (tracks up to 1,500 frames to keep the test fast)."""
-    from envs.actions import ACCEPTS
+    from envs.episodes.actions import ACCEPTS
 
     backend = draw(st.sampled_from(sorted(ACCEPTS)))
     tune = draw(st.permutations(ACCEPTS[backend]).flatmap(lambda p: st.integers(1, len(p)).map(lambda n: tuple(p[:n]))))

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import filters
-from envs.features import box_scale
+from envs.episodes.features import box_scale
 
 TOLERANCE = 1e-3  # max |estimate − y| / box scale over a track (0.05 px on a 50 px box)
 EXACT = 1e-10  # float round-off only

@@ -300,9 +300,9 @@ def test_sb3_vector_wrappers() -> None:
 
 
 def test_fused_scores_equal_the_metric_functions() -> None:
-    from envs import metrics
-    from envs.boxes import cxcywh_to_xywh
-    from envs.scoring import score_estimates
+    from envs.data import metrics
+    from envs.data.boxes import cxcywh_to_xywh
+    from envs.episodes.scoring import score_estimates
 
     rng = np.random.default_rng(0)
     truth = np.column_stack([rng.uniform(50, 60, (80, 2)), rng.uniform(10, 20, (80, 2))])
@@ -321,7 +321,7 @@ def test_fused_scores_equal_the_metric_functions() -> None:
 
 
 def test_scores_with_one_truth_per_row_equal_separate_calls() -> None:
-    from envs.scoring import score_estimates
+    from envs.episodes.scoring import score_estimates
 
     rng = np.random.default_rng(3)
     truth = np.column_stack([rng.uniform(50, 60, (3, 60, 2)).reshape(-1, 2), rng.uniform(10, 20, (180, 2))]).reshape(3, 60, 4)
@@ -338,8 +338,8 @@ def test_scores_with_one_truth_per_row_equal_separate_calls() -> None:
 
 @pytest.mark.parametrize("backend", ["ufir_cmn", "oufir", "kf_cmn"])
 def test_run_tracks_equals_each_track_alone(backend: str) -> None:
-    from envs.scoring import run_positions, run_tracks
-    from envs.simulate import ScenarioRanges, simulate
+    from envs.episodes.scoring import run_positions, run_tracks
+    from envs.data.simulate import ScenarioRanges, simulate
 
     rng = np.random.default_rng(2)
     tracks = [simulate(ScenarioRanges(n_frames=(T, T)).sample(rng), rng) for T in (90, 90, 70, 90)]
@@ -354,9 +354,9 @@ def test_run_tracks_equals_each_track_alone(backend: str) -> None:
 
 
 def test_fused_scores_on_threshold_boundaries() -> None:
-    from envs import metrics
-    from envs.boxes import cxcywh_to_xywh
-    from envs.scoring import score_estimates
+    from envs.data import metrics
+    from envs.data.boxes import cxcywh_to_xywh
+    from envs.episodes.scoring import score_estimates
 
     truth = np.tile([10.0, 10.0, 4.0, 4.0], (3, 1))
     est = np.stack([truth, truth + [2.0, 0, 0, 0], truth + [4.0 / 3, 0, 0, 0]])  # IoU 1, 1/3, exactly 0.5

@@ -60,7 +60,7 @@ def test_results_csv(compared: Path) -> None:
 def test_raw_is_the_unfiltered_measurement(compared: Path, tiny_run: Path) -> None:
     import gymnasium as gym
 
-    from envs.scoring import score_estimates
+    from envs.episodes.scoring import score_estimates
 
     env = gym.make("bboxtune/FilterTune-v0", track_length=100, split="test")
     table = rows(compared)
@@ -122,7 +122,7 @@ def test_otb_episodes_are_every_sequence_times_seeds_with_sequence_clusters(tiny
 def test_otb_tracker_episodes_are_every_sequence_times_every_tracker_with_output(tiny_run: Path, tmp_path: Path) -> None:
     out = compare(tiny_run, tmp_path / "trk", "--env-kwargs", "source=otb_tracker", "trackers=[MEEM, SiamFC]")
     table = rows(out)
-    from envs.otb import OTBDataset, split
+    from envs.data.otb import OTBDataset, split
 
     data = OTBDataset(OTB)
     test = split(data.names)["test"]

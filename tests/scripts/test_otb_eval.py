@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from envs.metrics import score_sequences
-from envs.otb import OTBDataset
+from envs.data.metrics import score_sequences
+from envs.data.otb import OTBDataset
 
 from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
 
@@ -138,7 +138,7 @@ def got10k_scores(pred: np.ndarray, gt: np.ndarray) -> tuple[float, float]:
 
 @needs_otb
 def test_differences_from_got10k_conventions_are_as_documented():
-    """envs.metrics vs got10k on every tracker and sequence: equal where neither convention applies (no missing
+    """envs.data.metrics vs got10k on every tracker and sequence: equal where neither convention applies (no missing
     ground truth, frame-1 box = ground truth), else within 1/T; at most 1/472 over OTB-100 (Twinnings)."""
     dataset, worst = OTBDataset(OTB_ROOT), 0.0
     for tracker in dataset.trackers:

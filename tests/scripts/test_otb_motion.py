@@ -8,7 +8,7 @@ from dataclasses import asdict
 
 import pytest
 
-from envs.sim_motion import OTB_MOTION
+from envs.data.sim_motion import OTB_MOTION
 
 from .tiny_run import load_script
 

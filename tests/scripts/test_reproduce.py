@@ -145,7 +145,7 @@ def test_write_atomic_leaves_old_file_when_writer_fails(modules, tmp_path):
 def test_car4_case_runs_and_tuned_cmn_kf_beats_tuned_kf(modules):
     """Car4 GT + CMN (ψ = 0.9): finite errors, and with σ_w tuned on the ground truth the CMN-aware KF beats the
     standard KF (the paper's claim holds once both are tuned)."""
-    from envs.otb import OTBDataset
+    from envs.data.otb import OTBDataset
 
     reproduce_otb = modules[3]
     settings = modules[1].make_settings(3, seed=0, quick=True)

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from agents import pretrained
-from envs.otb import OTBDataset
-from envs.otb_io import read_boxes
+from agents.tune import load_pretrained
+from envs.data.otb import OTBDataset
+from envs.data.otb_io import read_boxes
 
 from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
 from .tiny_run import REPO, load_script
@@ -65,7 +66,7 @@ def test_smoothed_files_hold_the_tuners_estimates(tmp_path, capsys):
     out = tmp_path / "out"
     assert run("--results", tmp_path / "SiamX", "--out", out, "--pretrained", "sim_ufir_cmn", "--tau", TAU) == 0
     assert sorted(p.name for p in out.iterdir()) == ["Alpha.txt", "Gamma.txt", "beta_1.txt", "params.csv"]
-    tuner = pretrained.load("sim_ufir_cmn")
+    tuner = load_pretrained("sim_ufir_cmn")
     table = {row.split(",")[0]: row.split(",") for row in (out / "params.csv").read_text().splitlines()}
     assert table.pop("sequence") == ["sequence", "n_frames", "n_missing_in", "n_missing_out", "psi", "horizon"]
     for name, boxes in raw.items():

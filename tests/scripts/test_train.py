@@ -223,7 +223,7 @@ def test_tensorboard_without_the_package_fails_clearly(train: ModuleType, tmp_pa
     (["--source", "otb"], None),
 ])
 def test_tracker_set_of_a_new_run(train: ModuleType, argv: list[str], expected) -> None:
-    from envs.otb import TRACKER_SPLIT
+    from envs.data.otb import TRACKER_SPLIT
 
     args = train.parse_args(argv)
     want = list(TRACKER_SPLIT[expected]) if isinstance(expected, str) else expected

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from envs.video.synthetic import VideoScenario, render
-from envs.video.tuning import FixedTuner
+from agents.video_tuning import FixedTuner
 
 from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
 from .tiny_run import load_script, tiny_run, train  # noqa: F401  (fixtures)

@@ -8,8 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
-from envs import metrics
-from envs.video.detectors import DETECTORS, MAX_WIDENING, detect_video, make_detector
+from envs.data import metrics
+from envs.video.detector import MAX_WIDENING
+from envs.video.detectors import DETECTORS, detect_video, make_detector
 from envs.video.synthetic import VideoScenario, render
 
 SCENE = VideoScenario(width=128, height=96, n_frames=20, object_size=(32.0, 28.0), speed=60.0, noise=2.0, rotation=3.0)

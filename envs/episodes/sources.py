@@ -21,33 +21,20 @@ enough keeps its sequence), and pinning a shorter one raises ``ValueError``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
-from envs.actions import K_AXIS, Nominal
-from envs.config import MIX_SOURCES, EnvConfig
-from envs.features import box_scale
-from envs.sim_regimes import simulate_nonstationary
-from envs.simulate import Scenario, ScenarioRanges, simulate_each
+from envs.data.otb import OTBDataset, replay_synthetic, replay_tracker, split
+from envs.data.sim_regimes import simulate_nonstationary
+from envs.data.simulate import Scenario, ScenarioRanges, simulate_each
+from envs.episodes.actions import K_AXIS, Nominal
+from envs.episodes.config import MIX_SOURCES, EnvConfig
+from envs.episodes.episode import Episode, Source, rule_nominal
+from envs.episodes.features import box_scale
+from envs.episodes.video_source import VideoSource
 from filters.horizon import rule_horizon
-
-if TYPE_CHECKING:
-    from envs.otb import OTBDataset
-
-
-
-@dataclass(frozen=True)
-class Episode:
-    """One track to be filtered: boxes are (cx, cy, w, h) in px."""
-
-    truth: np.ndarray  # (T, 4) true boxes; NaN rows: no ground truth (excluded from scores)
-    y: np.ndarray  # (T, 4) measured boxes; NaN rows: missing detection
-    tau: float  # s, frame interval the filters assume
-    nominal: Nominal  # the fixed rule's parameters for this episode (from measurements / config only)
-    meta: dict[str, Any] = field(default_factory=dict)  # what identifies it: sequence, noise_seed, tau, …
-    scenario: dict[str, Any] = field(default_factory=dict)  # the true ψ, σ that made the noise (hidden until the step)
 
 
 def _log_uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
@@ -55,40 +42,8 @@ def _log_uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
     return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
 
 
-def rule_nominal(cfg: EnvConfig, sigma_v: float, sigma_w: float, tau: float) -> Nominal:
-    """The fixed rule's parameters for nominal σ_v, σ_w (px, px/s²) at frame interval ``tau`` (s): N = N_opt
-    within [K, ``cfg.horizon_max``], ψ = ``cfg.nominal_psi``."""
-    return Nominal.of_rule(sigma_v, sigma_w, tau, cfg.nominal_psi, cfg.horizon_max)
-
-
-class Source:
-    """What the environments draw episodes from: ``draw(sequence, noise_seed)`` (subclasses) and
-    ``draw_many(noise_seeds)``, the unpinned episodes of those seeds; ``block`` is how many of them
-    FilterTune-v0 draws and prepares at once; ``n_frames`` the length of every episode when it is fixed;
-    ``trackers`` those a ``tracker`` argument of ``draw`` may pin (none: the env refuses the option)."""
-
-    block = 1
-    n_frames: int | None = None
-    min_frames = 2
-    trackers: tuple[str, ...] = ()
-
-    def require_frames(self, n: int, why: str) -> None:
-        """Draw only episodes of at least ``n`` frames (``why``: what needs them, for the error message).
-        A fixed ``n_frames`` below ``n`` raises ``ValueError`` naming ``track_length``."""
-        if self.n_frames is not None and self.n_frames < n:
-            raise ValueError(f"track_length={self.n_frames} is too short: {why} needs at least {n} frames")
-        self.min_frames = n
-
-    def draw(self, sequence: str | None, noise_seed: int) -> Episode:
-        raise NotImplementedError
-
-    def draw_many(self, noise_seeds: list[int]) -> list[Episode]:
-        """``[draw(None, s) for s in noise_seeds]`` (sources with a batched form override it)."""
-        return [self.draw(None, s) for s in noise_seeds]
-
-
 class SimSource(Source):
-    """Simulated CV boxes with Gauss–Markov CMN (:mod:`envs.simulate`); the scenario is drawn per episode
+    """Simulated CV boxes with Gauss–Markov CMN (:mod:`envs.data.simulate`); the scenario is drawn per episode
     from the config's ranges. Nominal σ are the geometric centres of the σ ranges."""
 
     def __init__(self, cfg: EnvConfig) -> None:
@@ -109,7 +64,7 @@ class SimSource(Source):
         return self.draw_many([noise_seed])[0]
 
     def draw_many(self, noise_seeds: list[int]) -> list[Episode]:
-        """The episodes of ``noise_seeds``, simulated in one vectorised pass (:func:`envs.simulate.simulate_each`:
+        """The episodes of ``noise_seeds``, simulated in one vectorised pass (:func:`envs.data.simulate.simulate_each`:
         each equal to drawing it alone)."""
         if not noise_seeds:
             return []
@@ -135,7 +90,7 @@ class SimSource(Source):
         return episodes
 
     def _nonstationary(self, seed: int, scenario: Scenario) -> Episode:
-        """The nonstationary episode of ``seed`` around its drawn ``scenario`` (:mod:`envs.sim_regimes`)."""
+        """The nonstationary episode of ``seed`` around its drawn ``scenario`` (:mod:`envs.data.sim_regimes`)."""
         track, truth = simulate_nonstationary(scenario, seed, self.cfg.psi_range, self.cfg.sigma_xi_range)
         nominal = rule_nominal(self.cfg, self.sigma_v_nominal, self.sigma_w_nominal, track.tau)
         return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal,
@@ -155,8 +110,6 @@ class OTBSource(Source):
     some tracker), ``sequences_of(t)``: tracker ``t``'s pool."""
 
     def __init__(self, cfg: EnvConfig, dataset: OTBDataset | None = None) -> None:
-        from envs.otb import OTBDataset, split
-
         self.cfg = cfg
         self.dataset = dataset if dataset is not None else OTBDataset(cfg.otb_root)
         names = split(self.dataset.names)[cfg.split]
@@ -220,8 +173,6 @@ class OTBSource(Source):
                 return tracker
 
     def draw(self, sequence: str | None, noise_seed: int, tracker: str | None = None) -> Episode:
-        from envs.otb import replay_synthetic, replay_tracker
-
         cfg = self.cfg
         if sequence is not None and sequence not in self.dataset.names:
             raise ValueError(f"options['sequence']={sequence!r} is not an OTB sequence under {self.dataset.root}")
@@ -251,7 +202,7 @@ class OTBSource(Source):
 
 
 class MixSource(Source):
-    """Source "mix": each episode's part — "sim", "otb" or "otb_tracker" (``envs.config.MIX_SOURCES``) — is drawn
+    """Source "mix": each episode's part — "sim", "otb" or "otb_tracker" (``envs.episodes.config.MIX_SOURCES``) — is drawn
     with probabilities proportional to ``mix_weights`` from ``default_rng((noise_seed, 3))``; the episode is
     then that part's episode of the same noise seed (what a single-source env of the part draws, with the
     same config: nominal σ, the fixed rule and the scenario come from the part), with ``meta["source"]``
@@ -260,8 +211,6 @@ class MixSource(Source):
     never re-drawn, so the options of an episode's ``meta`` replay it."""
 
     def __init__(self, cfg: EnvConfig) -> None:
-        from envs.otb import OTBDataset
-
         self.weights = np.array(cfg.mix_weights) / sum(cfg.mix_weights)
         self.parts: dict[str, Source] = {}
         dataset = None
@@ -313,8 +262,6 @@ def make_source(cfg: EnvConfig) -> Source:
     if cfg.source == "sim":
         return SimSource(cfg)
     if cfg.source == "video":
-        from envs.video.source import VideoSource
-
         return VideoSource(cfg)
     if cfg.source == "mix":
         return MixSource(cfg)

@@ -1,13 +1,13 @@
 """Filter parameters for video episodes: the fixed rule, a grid-searched fixed action, or a trained tuner.
 
-Actions follow the env's mapping (:class:`envs.actions.ActionMap`, default ``tune`` of the back end), so
+Actions follow the env's mapping (:class:`envs.episodes.actions.ActionMap`, default ``tune`` of the back end), so
 a tuned action means the same thing relative to every episode's nominal σ as it does in the env.
 
 * :func:`grid_tune` — one action for a whole video set: the point of a regular grid over [-1, 1]^d with the
   best mean score over *training* episodes (no test data); saved/loaded as JSON (:class:`FixedTuner`).
 * :func:`load_tuner` — a ``tuned.json`` from :func:`grid_tune` or a ``scripts/train.py`` run directory
   (``config.yml`` + ``model.zip`` [+ ``vecnormalize.json``], loaded by ``agents.runs.SB3Policy``): the policy
-  sees the env's observation features of each episode (:func:`envs.features.measurement_features`) and its
+  sees the env's observation features of each episode (:func:`envs.episodes.features.measurement_features`) and its
   back end and ``tune`` come from the run's ``env_kwargs``.
 """
 
@@ -23,16 +23,18 @@ from typing import Any
 
 import numpy as np
 
-from envs import textfile
-from envs.actions import DEFAULT_TUNE, K_AXIS, ActionMap
-from envs.features import measurement_features
-from envs.scoring import run_positions, score_estimates
-from envs.sources import Episode
+from agents.runs import SB3Policy, load_config
+from envs.data import textfile
+from envs.episodes.config import EnvConfig
+from envs.episodes.actions import DEFAULT_TUNE, K_AXIS, ActionMap
+from envs.episodes.features import measurement_features
+from envs.episodes.scoring import run_positions, score_estimates
+from envs.episodes.episode import Episode
 
 
 def action_map(backend: str, tune: Sequence[str] | None = None, horizon_max: int = 400,
                sigma_decades: float = 1.5) -> ActionMap:
-    """The env's action mapping for ``backend`` (defaults as :class:`envs.config.EnvConfig`)."""
+    """The env's action mapping for ``backend`` (defaults as :class:`envs.episodes.config.EnvConfig`)."""
     return ActionMap(tune=tuple(tune or DEFAULT_TUNE[backend]), K=K_AXIS, horizon_max=horizon_max,
                      sigma_decades=sigma_decades)
 
@@ -98,7 +100,7 @@ class PolicyTuner(Tuner):
 def grid_tune(episodes: Sequence[Episode], backend: str, points: int = 9, metric: str = "success_auc",
               actions: ActionMap | None = None) -> tuple[FixedTuner, float]:
     """The grid action (``points`` per tuned dimension, [-1, 1]) with the best mean ``metric`` over
-    ``episodes`` (``"rmse"``: lowest mean log RMSE; any other score key of :func:`envs.scoring.score_estimates`:
+    ``episodes`` (``"rmse"``: lowest mean log RMSE; any other score key of :func:`envs.episodes.scoring.score_estimates`:
     highest mean). Returns the tuner and its mean score."""
     amap = actions or action_map(backend)
     if points < 2:
@@ -119,9 +121,6 @@ def load_tuner(path: str | os.PathLike, *, trust_pickle: bool = False) -> Tuner:
     unpickling, ``trust_pickle`` as in ``agents.runs.SB3Policy.load``). ValueError naming the file otherwise."""
     path = Path(path)
     if path.is_dir() and (path / "config.yml").is_file():
-        from agents.runs import SB3Policy, load_config  # lazy: envs must not need agents otherwise
-        from envs.config import EnvConfig
-
         run_cfg = load_config(path)
         try:
             cfg = EnvConfig.from_kwargs(**run_cfg["env_kwargs"])

@@ -7,10 +7,10 @@ import itertools
 import numpy as np
 import pytest
 
-from envs.config import EnvConfig
-from envs.scoring import run_positions, score_estimates
-from envs.video.source import VideoSettings, VideoSource
-from envs.video.tuning import FixedTuner, PolicyTuner, action_map, grid_tune, load_tuner, rule_params
+from envs.episodes.config import EnvConfig
+from envs.episodes.scoring import run_positions, score_estimates
+from envs.episodes.video_source import VideoSettings, VideoSource
+from agents.video_tuning import FixedTuner, PolicyTuner, action_map, grid_tune, load_tuner, rule_params
 
 
 @pytest.fixture(scope="module")

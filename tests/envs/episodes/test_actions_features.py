@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.actions import ACCEPTS, DEFAULT_TUNE, TUNABLE, ActionMap, Nominal
-from envs.features import FEATURE_NAMES, estimate_sigmas, measurement_features
+from envs.episodes.actions import ACCEPTS, DEFAULT_TUNE, TUNABLE, ActionMap, Nominal
+from envs.episodes.features import FEATURE_NAMES, estimate_sigmas, measurement_features
 
 NOMINAL = Nominal(sigma_w=10.0, sigma_v=2.0, psi=0.0, horizon=24)
 FULL = ActionMap(tune=("psi", "horizon", "sigma_w", "sigma_v"), K=2, horizon_max=400)
@@ -61,7 +61,7 @@ def test_bad_tune_raises() -> None:
 
 
 def _track(rng: np.random.Generator, T: int = 400, sigma_v: float = 2.0, sigma_w: float = 30.0, tau: float = 0.05):
-    from envs.simulate import Scenario, simulate
+    from envs.data.simulate import Scenario, simulate
 
     track = simulate(Scenario(psi=0.0, sigma_w=sigma_w, sigma_xi=sigma_v, tau=tau, n_frames=T, ndim=4), rng)
     return track.truth, track.y

@@ -28,7 +28,7 @@ boxes as empty).
 
 Motion models (``Scenario.motion``): "cv" (default) is the model above; "otb" (box tracks only) replaces the
 truth's motion by the one fitted to OTB-100's ground truth — scale-relative centre velocity with manoeuvres and
-a log-size random walk (:mod:`envs.sim_motion`, docs/otb_motion.md) — with the same CMN (2)–(3); ``sigma_w`` and
+a log-size random walk (:mod:`envs.data.sim_motion`, docs/otb_motion.md) — with the same CMN (2)–(3); ``sigma_w`` and
 ``sigma_w_log_size`` are then unused and ``velocity_rms``, ``size_rw`` set the episode's motion level.
 
 Everything is drawn from the ``numpy.random.Generator`` passed in, so an episode is reproducible from its seed.
@@ -43,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.signal import lfilter
 
-from envs.sim_motion import OTB_MOTION, draw_extra, otb_paths
+from envs.data.sim_motion import OTB_MOTION, draw_extra, otb_paths, reflect
 
 MOTIONS = ("cv", "otb")  # truth motion models: constant velocity (seed 000 eq. 1) or fitted to OTB-100
 _NDIMS = (1, 2, 4)  # scalar two-state, centroid (cx, cy), box (cx, cy, w, h)
@@ -74,7 +74,7 @@ class Scenario:
     sigma_w_log_size: float = 0.002  # 1/s²: acceleration noise std of log w and log h (ndim 4)
     size_noise_ratio: float = 0.5  # σ_ξ of the w, h measurements as a fraction of sigma_xi (ndim 4)
     size_bounds: tuple[float, float] = (4.0, 1000.0)  # px: true w and h are reflected at these bounds (ndim 4)
-    motion: str = "cv"  # "cv": model (1); "otb": envs.sim_motion's fitted OTB motion (ndim 4 only)
+    motion: str = "cv"  # "cv": model (1); "otb": envs.data.sim_motion's fitted OTB motion (ndim 4 only)
     velocity_rms: float = 1.0  # box scales/s: rms centre velocity σ_r ("otb")
     size_rw: float = 0.1  # 1/√s: random-walk std σ_ℓ of log w and log h ("otb")
 
@@ -135,20 +135,6 @@ def _integrate(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.nd
     steps = (tau + delta) * v[:, :, :-1] + 0.5 * (tau * tau) * w  # p_n − p_{n−1} = (τ + δ) v_{n−1} + τ²/2 w_n (1)
     p = np.concatenate([p0[:, :, None], p0[:, :, None] + np.cumsum(steps, axis=2)], axis=2)
     return p.transpose(0, 2, 1), v.transpose(0, 2, 1)
-
-
-def reflect(x: np.ndarray, rate: np.ndarray, low: np.ndarray | float, high: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
-    """Fold a free path ``x`` into [low, high] by reflection at both ends (``low`` < ``high``, broadcastable), with
-    its rate of change ``rate``: a value k reflections away from the interval is mirrored k times, and its rate
-    changes sign when k is odd. Values already inside are returned unchanged (the same arrays when all are)."""
-    outside = (x < low) | (x > high)
-    if not outside.any():
-        return x, rate
-    width = high - low
-    u = np.mod(x - low, 2.0 * width)  # position within one back-and-forth period
-    odd = u > width  # an odd number of reflections: on the way back
-    folded = low + np.where(odd, 2.0 * width - u, u)
-    return np.where(outside, folded, x), np.where(outside & odd, -rate, rate)
 
 
 def gauss_markov(psi: float, sigma_xi: np.ndarray, shape: tuple[int, int, int], rng: np.random.Generator) -> np.ndarray:
@@ -279,7 +265,7 @@ class ScenarioRanges:
     size: tuple[float, float] = (20.0, 200.0)  # px, initial w and h (independent, log-uniform), ndim 4
     ndim: int = 4  # 1, 2 or 4 (see Scenario)
     size_bounds: tuple[float, float] = (4.0, 1000.0)  # px, where true w and h are reflected (Scenario.size_bounds)
-    motion: str = "cv"  # Scenario.motion; "otb" draws velocity_rms and size_rw (envs.sim_motion), σ_w is unused
+    motion: str = "cv"  # Scenario.motion; "otb" draws velocity_rms and size_rw (envs.data.sim_motion), σ_w is unused
 
     def __post_init__(self) -> None:
         for name in ("psi", "sigma_w", "sigma_xi", "tau", "n_frames", "delta", "size"):

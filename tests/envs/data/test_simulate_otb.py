@@ -1,4 +1,4 @@
-"""The simulator's opt-in "otb" motion model (envs.sim_motion): bit-identity and the model's statistics."""
+"""The simulator's opt-in "otb" motion model (envs.data.sim_motion): bit-identity and the model's statistics."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from envs.config import EnvConfig
-from envs.sim_motion import OTB_MOTION, OTBMotion
-from envs.simulate import Scenario, ScenarioRanges, simulate, simulate_each
-from envs.sources import SimSource
+from envs.episodes.config import EnvConfig
+from envs.data.sim_motion import OTB_MOTION, OTBMotion
+from envs.data.simulate import Scenario, ScenarioRanges, simulate, simulate_each
+from envs.episodes.sources import SimSource
 
 
 def test_simulate_each_equals_simulating_one_at_a_time():

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from envs.simulate import Scenario, Track, assemble, initial_conditions, log_uniform
+from envs.data.simulate import Scenario, Track, assemble, initial_conditions, log_uniform
 
 
 @dataclass(frozen=True)

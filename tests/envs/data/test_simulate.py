@@ -6,7 +6,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from envs.simulate import PRESETS, Scenario, ScenarioRanges, reflect, simulate, simulate_each
+from envs.data.sim_motion import reflect
+from envs.data.simulate import PRESETS, Scenario, ScenarioRanges, simulate, simulate_each
 
 
 def _bounce(x: float, low: float, high: float) -> tuple[float, float]:
@@ -226,8 +227,8 @@ def test_long_tracks_keep_sizes_within_the_bounds(n_frames):
 def test_default_env_tracks_never_reach_the_size_bounds():
     """The default 500-frame env episodes (published results) are the free tracks, bit for bit: over the first
     1,000 noise seeds and the 500 test seeds, widening the bounds to the widest allowed changes nothing."""
-    from envs.config import EnvConfig
-    from envs.sources import SimSource
+    from envs.episodes.config import EnvConfig
+    from envs.episodes.sources import SimSource
 
     seeds = list(range(1000)) + [10**9 + i for i in range(500)]
     default = SimSource(EnvConfig()).draw_many(seeds)

@@ -62,6 +62,20 @@ OTB_MOTION = OTBMotion(switch_rate=3.05, cruise_share=0.394, jitter_time=0.0663,
                        level_log_std=0.796, size_log_mean=-2.24, size_log_std=0.732)
 
 
+def reflect(x: np.ndarray, rate: np.ndarray, low: np.ndarray | float, high: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """Fold a free path ``x`` into [low, high] by reflection at both ends (``low`` < ``high``, broadcastable), with
+    its rate of change ``rate``: a value k reflections away from the interval is mirrored k times, and its rate
+    changes sign when k is odd. Values already inside are returned unchanged (the same arrays when all are)."""
+    outside = (x < low) | (x > high)
+    if not outside.any():
+        return x, rate
+    width = high - low
+    u = np.mod(x - low, 2.0 * width)  # position within one back-and-forth period
+    odd = u > width  # an odd number of reflections: on the way back
+    folded = low + np.where(odd, 2.0 * width - u, u)
+    return np.where(outside, folded, x), np.where(outside & odd, -rate, rate)
+
+
 def draw_extra(rng: np.random.Generator, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
     """The draws of one track beyond the "cv" model's: normals (T + 1, 2) and uniforms (T, 2)."""
     return rng.standard_normal((n_frames + 1, 2)), rng.random((n_frames, 2))
@@ -72,8 +86,6 @@ def otb_paths(eps: np.ndarray, normals: np.ndarray, uniforms: np.ndarray, x0: np
     """True boxes (B, T, 4) and their velocities (B, T, 4) from standard-normal ``eps`` (B, T − 1, 4),
     ``normals`` (B, T + 1, 2), ``uniforms`` (B, T, 2); per track the first box ``x0`` (B, 4) (cx, cy, w, h),
     the frame step h ``step`` (B,), ``levels`` (B, 2) = (σ_r, σ_ℓ) and the size ``bounds`` (B, 2) px."""
-    from envs.simulate import reflect
-
     B, T = uniforms.shape[:2]
     h = step[:, None, None]
     # sizes: reflected random walk of ℓ = log(w / w_0)

@@ -18,14 +18,15 @@ from typing import Any
 import numpy as np
 
 import filters
-from envs.actions import ACCEPTS, DEFAULT_TUNE
+from envs.episodes.actions import ACCEPTS, DEFAULT_TUNE
+from envs.video.detectors import DETECTORS
 
 SOURCES = ("sim", "otb", "otb_tracker", "video", "mix")
 MIX_SOURCES = ("sim", "otb", "otb_tracker")  # the parts of source "mix", in the order of mix_weights
 SPLITS = ("train", "val", "test")
 SCENARIOS = ("stationary", "nonstationary")  # sim: one regime per track, or regimes switching within it
 REWARDS = ("rmse", "iou_precision", "success_auc")
-# Longest track (frames). Simulated box sizes are reflected at ``box_size_bounds`` (envs.simulate), so they
+# Longest track (frames). Simulated box sizes are reflected at ``box_size_bounds`` (envs.data.simulate), so they
 # stay plausible at any length; the bound keeps a track's memory and filter time moderate (a 100,000-frame
 # episode: 3.2 MB per (T, 4) array; reset + step ~0.8 s with ufir_cmn, ~2 s with kf_cmn or ukf on a 2-core
 # machine) and centre excursions well resolved in float64 (default ranges: at most 3.3e7 px from the start
@@ -126,7 +127,7 @@ class EnvConfig:
     # FilterTune-v0: what the reward is measured against, "rule" | "raw" (the unfiltered measurements: the same best
     # action per episode, a lower-variance signal where the filter should stay near the measurements)
     reward_baseline: str = "rule"
-    tune: tuple[str, ...] | None = None  # parameters the agent sets; None -> envs.actions.DEFAULT_TUNE[backend]
+    tune: tuple[str, ...] | None = None  # parameters the agent sets; None -> envs.episodes.actions.DEFAULT_TUNE[backend]
     track_length: int = 500  # frames per simulated track / video, integer in [8, TRACK_LENGTH_MAX]
     # sim scenario distribution ((low, high); log-uniform for σ, uniform otherwise)
     psi_range: tuple[float, float] = (0.0, 0.95)  # within [0, 0.99]
@@ -135,18 +136,18 @@ class EnvConfig:
     tau_range: tuple[float, float] = (1 / 30, 0.1)  # s, frame interval; within [1e-3, 1]
     box_size_range: tuple[float, float] = (20.0, 200.0)  # px, initial w and h; within box_size_bounds
     box_size_bounds: tuple[float, float] = (4.0, 1000.0)  # px, simulated w and h are reflected here; within [1, 1e5]
-    # sim truth motion: "cv" (constant velocity, σ_w above) | "otb" (fitted to OTB-100, envs.sim_motion: scale-relative
+    # sim truth motion: "cv" (constant velocity, σ_w above) | "otb" (fitted to OTB-100, envs.data.sim_motion: scale-relative
     # velocity with manoeuvres, log-size random walk; sigma_w_range then only sets the rule's nominal σ_w)
     motion: str = "cv"
     # sim "stationary": one ψ, σ_w, σ_ξ per track | "nonstationary": regime switches of ψ and σ_ξ, manoeuvre bursts
-    # and occlusion gaps within a track (envs.sim_regimes, documented with its ranges); sim / mix with motion "cv"
+    # and occlusion gaps within a track (envs.data.sim_regimes, documented with its ranges); sim / mix with motion "cv"
     scenario: str = "stationary"
     # OTB sources
     otb_root: str | None = None  # folder of the OTB data; None -> $OTB_ROOT
     split: str = "train"  # "train" | "val" | "test": which sequences episodes are drawn from
     tracker: str = "SiamFC"  # source "otb_tracker": whose output is the measurement (a non-empty name)
     # "otb_tracker" / "mix": the trackers an episode's tracker is drawn from, uniformly (names under the OTB
-    # root's trackers/, distinct; envs.otb.TRACKER_SPLIT has the default split); None -> (tracker,)
+    # root's trackers/, distinct; envs.data.otb.TRACKER_SPLIT has the default split); None -> (tracker,)
     trackers: tuple[str, ...] | None = None
     # source "mix": relative weights of its parts (sim, otb, otb_tracker), each a real in [0, 1e6], sum > 0
     mix_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
@@ -154,7 +155,7 @@ class EnvConfig:
     cmn_rel_range: tuple[float, float] = (0.01, 0.1)  # source "otb": σ_ξ relative to the box size, log-uniform; within [1e-4, 1]
     otb_sigma_v_rel: float = 0.03  # nominal σ_v relative to the measured box scale (OTB sources); in (0, 10]
     otb_sigma_w_rel: float = 3.0  # 1/s², nominal σ_w relative to the measured box scale (OTB sources); in (0, 1e4]
-    # source "video": synthetic videos measured by a real detector (envs.video.source.VideoSource)
+    # source "video": synthetic videos measured by a real detector (envs.episodes.video_source.VideoSource)
     detector: str = "template"  # one of envs.video.detectors.DETECTORS
     video_pool: int = 64  # distinct videos per split, integer in [1, 1e6]
     video_cache: str | None = None  # folder caching rendered + detected videos; None: memory only
@@ -228,8 +229,6 @@ class EnvConfig:
                              "source 'mix' (leave the default (1.0, 1.0, 1.0) otherwise)")
 
     def _check_video_fields(self) -> None:
-        from envs.video.detectors import DETECTORS
-
         object.__setattr__(self, "detector", check_choice("detector", self.detector, DETECTORS))
         size = self.video_size
         if isinstance(size, (str, bytes)) or not isinstance(size, (Sequence, np.ndarray)) or len(size) != 2:

@@ -1,4 +1,4 @@
-"""The one bounded reader (envs.textfile) and the readers built on it: never block on a pipe, never read
+"""The one bounded reader (envs.data.textfile) and the readers built on it: never block on a pipe, never read
 past the limit, name the file."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from agents import cli
 from agents.checkpoints import _pointer
 from agents.run_files import RunError, read_json
-from envs import textfile
+from envs.data import textfile
 
 
 @pytest.fixture

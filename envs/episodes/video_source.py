@@ -32,10 +32,10 @@ from typing import Any
 
 import numpy as np
 
-from envs.actions import Nominal
-from envs.boxes import xywh_to_cxcywh
-from envs.features import box_scale
-from envs.sources import Episode, Source
+from envs.episodes.actions import Nominal
+from envs.data.boxes import xywh_to_cxcywh
+from envs.episodes.features import box_scale
+from envs.episodes.episode import Episode, Source
 from envs.video.detectors import DETECTORS, detect_video, make_detector
 from envs.video.synthetic import VideoRanges, synthetic_video
 
@@ -127,7 +127,7 @@ def parse_sequence(name: str) -> tuple[str, int]:
 
 
 class VideoSource(Source):
-    """Episodes from synthetic videos of one split measured by one detector (an :class:`envs.sources.Source`:
+    """Episodes from synthetic videos of one split measured by one detector (an :class:`envs.episodes.sources.Source`:
     ``draw(sequence, noise_seed) -> Episode``; boxes cx, cy, w, h)."""
 
     def __init__(self, cfg: Any, settings: VideoSettings | None = None) -> None:

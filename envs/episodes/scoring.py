@@ -7,8 +7,8 @@ from functools import lru_cache
 import numpy as np
 
 import filters
-from envs import metrics
-from envs.actions import ACCEPTS
+from envs.data import metrics
+from envs.episodes.actions import ACCEPTS
 
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
 
@@ -62,9 +62,9 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
     episode) or (A, T, 4) (one episode per row) — all cx, cy, w, h; each value (A,).
 
     ``rmse``: sqrt(mean over frames of the squared Euclidean error of (cx, cy, w, h)) in px
-    (:func:`envs.metrics.rmse_total`); ``iou_mean``; ``success_auc``, ``precision20`` and
+    (:func:`envs.data.metrics.rmse_total`); ``iou_mean``; ``success_auc``, ``precision20`` and
     ``iou_precision`` (seed 001's TP/(TP+FP), averaged over its 21 IoU thresholds) with the conventions of
-    :mod:`envs.metrics` — computed here from one IoU and one centre-error pass (the tests check equality
+    :mod:`envs.data.metrics` — computed here from one IoU and one centre-error pass (the tests check equality
     with the metric functions). Frames without ground truth are left out; a missing estimate where the
     truth exists counts as a failure (IoU 0, infinite centre error) and is not a detection, and is left
     out of the RMSE (filters have no estimate before a track's first finite measurement — the same frames
@@ -82,7 +82,7 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
         n_scored = scored.sum(axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             rmse = np.where(n_scored > 0, np.sqrt(np.where(scored, squared, 0.0).sum(axis=1) / n_scored), np.nan)
-    # IoU and centre error as envs.metrics computes them on xywh boxes (x = cx − w/2, widths clipped at 0)
+    # IoU and centre error as envs.data.metrics computes them on xywh boxes (x = cx − w/2, widths clipped at 0)
     x, y = cx - 0.5 * w, cy - 0.5 * h
     gx0, gy0 = gx - 0.5 * gw, gy - 0.5 * gh
     wc, hc, gwc, ghc = np.maximum(w, 0.0), np.maximum(h, 0.0), np.maximum(gw, 0.0), np.maximum(gh, 0.0)

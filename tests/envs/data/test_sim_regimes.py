@@ -1,4 +1,4 @@
-"""scenario="nonstationary": regime switches, manoeuvre bursts and gaps within a track (envs.sim_regimes)."""
+"""scenario="nonstationary": regime switches, manoeuvre bursts and gaps within a track (envs.data.sim_regimes)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the ids)
-from envs.config import EnvConfig
-from envs.sim_regimes import REGIMES, simulate_nonstationary
-from envs.simulate import Scenario
+from envs.episodes.config import EnvConfig
+from envs.data.sim_regimes import REGIMES, simulate_nonstationary
+from envs.data.simulate import Scenario
 
 TUNE, RETUNE = "bboxtune/FilterTune-v0", "bboxtune/FilterRetune-v0"
 
