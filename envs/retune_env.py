@@ -12,7 +12,6 @@ from envs.episodes.config import EnvConfig
 from envs.episodes.features import WINDOW_FEATURE_NAMES, measurement_features, window_features
 from envs.episodes.scoring import SCORE_KEYS, box_model, reward_from, run_positions, score_estimates
 from envs.track_env import TrackEnv, check_reset_args
-from filters.fir_core import FIRFilter
 
 
 class FilterRetuneEnv(TrackEnv):
@@ -132,7 +131,6 @@ class FilterRetuneEnv(TrackEnv):
         super().__init__(len(WINDOW_FEATURE_NAMES) + len(tune) + 1, render_mode=render_mode, **kwargs)
         W = self.config.window
         self.source.require_frames(2 * W, f"FilterRetune-v0 with window={W} (a warm-up window and one step)")
-        self._fir = issubclass(filters.filter_class(self.config.backend), FIRFilter)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
         seed, options = check_reset_args(seed, options)
@@ -154,19 +152,14 @@ class FilterRetuneEnv(TrackEnv):
 
     def _run_window(self, params: dict[str, np.ndarray], carry: Any, end: int | None = None) -> tuple[np.ndarray, Any]:
         """Estimates (A, w, 4) of the current window (or, with ``end``, of the frames from its start to ``end``)
-        for candidates ``params`` (arrays (A,)), continuing from ``carry`` (Kalman family) or from the raw
-        measurement history (FIR family)."""
+        for candidates ``params`` (arrays (A,)), continuing from ``carry`` (the back end's: a Kalman state or the
+        FIR family's measurement history, :meth:`filters.base.Filter.run_from`), and the carry after them."""
         ep = self.episode
         start, window_end = self._window_bounds()
         end = window_end if end is None else end
-        if self._fir:
-            first = max(0, start - int(np.max(params["horizon"])) - 1)  # enough history for every window
-            est = run_positions(self.config.backend, ep.y[first:end], ep.tau, params)
-            return est[:, start - first:], None
         n = len(params["horizon"])
         flt = filters.make(self.config.backend, box_model(ep.tau), **{k: params[k] for k in ACCEPTS[self.config.backend]})
-        states, new_carry = flt.run_from(np.broadcast_to(ep.y[start:end], (n, end - start, 4)), carry)
-        return states[..., :4], new_carry
+        return flt.positions_from(np.broadcast_to(ep.y[start:end], (n, end - start, 4)), carry)
 
     def _advance(self, params: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         est, self._carry = self._run_window(params, self._carry)

@@ -1,5 +1,6 @@
-"""The interface every back end shares: ``Filter(model, **params).run(y) -> states``, and for the Kalman
-family ``run_from(y, carry) -> (states, carry)`` to continue a run where a previous call stopped.
+"""The interface every back end shares: ``Filter(model, **params).run(y) -> states``, and
+``run_from(y, carry) -> (states, carry)`` to continue a run where a previous call stopped (the Kalman family
+carries its state, a :class:`Carry`; the FIR family its measurement history, :class:`filters.history.History`).
 
 A back end subclasses :class:`Filter`, lists its parameters with their defaults in ``DEFAULTS`` and
 implements, on one batch of independent two-state coordinate problems (every coordinate of every track is
@@ -30,8 +31,7 @@ from filters.validation import broadcast_params, check_measurements, check_value
 # Channel-frames (tracks × coordinates × frames) filtered per chunk: bounds the working memory of a call
 # (the heaviest back end, UFIR with missing samples, needs ~300 bytes per channel-frame: ~300 MB a chunk)
 CHUNK_SAMPLES = 1 << 20
-CANNOT_CONTINUE = ("{name} cannot continue a run from a Carry (run_from); only the Kalman family (kf, kf_cmn, ukf) "
-                   "can: re-run FIR filters on the measurement history")
+CANNOT_CONTINUE = "{name} implements neither _run_axes_from (a carried state) nor its own run_from"
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,8 +195,6 @@ class Filter(ABC):
         Returns the states (T, K) or (B, T, K) and the :class:`Carry` after the last frame (B = 1 for a
         (T, M) input; ``carry`` must have the batch size of ``y``, see :meth:`Carry.repeat`). With T = 0 frames
         the carry is returned unchanged (None: a carry of tracks that have not started)."""
-        if type(self)._run_axes_from is Filter._run_axes_from:  # this back end keeps no state between calls
-            raise NotImplementedError(CANNOT_CONTINUE.format(name=self.name))
         Y, U, per_track, batched = self._inputs(y, u)
         n_tracks, T, M = Y.shape
         n_c = self.camera_coordinates
@@ -220,6 +218,11 @@ class Filter(ABC):
         else:
             end_carry = not_started(0, M, n_c)
         return (states if batched else states[0]), end_carry
+
+    def positions_from(self, y: np.ndarray, carry: Any = None, u: np.ndarray | None = None) -> tuple[np.ndarray, Any]:
+        """:meth:`run_from`'s position estimates only, (T, M) or (B, T, M), and the carry after the last frame."""
+        states, end = self.run_from(y, carry, u)
+        return states[..., : self.model.M], end
 
     def _check_finite(self, axes: np.ndarray, z: np.ndarray, rows: slice, params: dict[str, Any]) -> None:
         """Every estimate (C, T, k) at or after a channel's first finite measurement must be finite: inside the

@@ -35,9 +35,10 @@ import numpy as np
 import scipy.fft as sfft
 
 from filters.base import Filter
+from filters.history import History, continue_span
 from filters.horizon import rule_horizon
 from filters.model import StateSpaceModel, constant_velocity
-from filters.validation import check_horizon, check_sigma
+from filters.validation import check_horizon, check_measurements, check_sigma
 
 CACHE_BYTES = 64 * 2**20  # bytes of gains kept by the LRU gain cache (shared by all FIR back ends)
 
@@ -132,6 +133,29 @@ class FIRFilter(Filter):
     def observable(self, valid: np.ndarray, params: dict[str, np.ndarray]) -> np.ndarray:
         """(P,) True where a window ``valid`` (P, L) determines the state; default: >= K = 2 valid samples."""
         return valid.sum(axis=-1) >= self.model.axis().K
+
+    def run_from(self, y: np.ndarray, carry: History | None = None,
+                 u: np.ndarray | None = None) -> tuple[np.ndarray, History]:
+        """Continue a run after the measurements in ``carry`` (a :class:`~filters.history.History`; None = the
+        start of every track): the states of ``y`` (T, M) or (B, T, M) and the history after it. The parameters
+        may differ from the previous call's; equality with :meth:`run` on the whole track: :mod:`filters.history`."""
+        return self._continue(y, carry, u, self.run)
+
+    def positions_from(self, y: np.ndarray, carry: History | None = None,
+                       u: np.ndarray | None = None) -> tuple[np.ndarray, History]:
+        """:meth:`run_from`'s position estimates only (half the work, as :meth:`positions`)."""
+        return self._continue(y, carry, u, self.positions)
+
+    def _continue(self, y: np.ndarray, carry: History | None, u: np.ndarray | None,
+                  run: Any) -> tuple[np.ndarray, History]:
+        if carry is not None and not isinstance(carry, History):
+            raise TypeError(f"{self.name}: carry is a {type(carry).__name__}; allowed: None or a filters.history.History "
+                            "(the FIR family's carry is its measurement history)")
+        Y, batched = check_measurements(y, self.model.M)
+        self._check_input(u, Y.shape, batched)  # no camera states: refuses a u
+        span, lead, history = continue_span(Y, carry, int(np.max(self.params["horizon"])) + 1)
+        out = run(span)[:, lead:]
+        return (out if batched else out[0]), history
 
     # ------------------------------------------------------------------------------------------------
     def _run_axes(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:

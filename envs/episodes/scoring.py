@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
 import filters
@@ -13,48 +11,28 @@ from envs.episodes.actions import ACCEPTS
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
 
 
-@lru_cache(maxsize=64)
 def box_model(tau: float) -> filters.StateSpaceModel:
-    """The (cx, cy, w, h) constant-velocity model at frame interval ``tau`` (cached: models are immutable)."""
-    return filters.constant_velocity(tau, ndim=4)
+    """The (cx, cy, w, h) constant-velocity model at frame interval ``tau`` (cached: :func:`filters.cv_model`)."""
+    return filters.cv_model(float(tau), 4)
 
 
-def _in_frames(backend: str, tau: np.ndarray, params: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The frame intervals and parameters to run ``backend`` with: back ends exact in frame units (FIR family,
-    KF, KF-CMN: ``IN_FRAMES``, σ_w → σ_w τ², :meth:`filters.base.Filter.params_in_frames`) run at τ = 1
-    whatever the tracks' τ (one cached model, one batched call); the others (UKF) keep τ."""
-    cls = filters.filter_class(backend)
-    used = {k: np.asarray(params[k]) for k in ACCEPTS[backend]}
-    if cls.IN_FRAMES:
-        return np.ones_like(tau), cls.params_in_frames(used, tau)
-    return tau, used
+def _used(backend: str, params: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The parameters of the env's set (psi, horizon, sigma_w, sigma_v) that ``backend`` takes (``ACCEPTS``)."""
+    return {k: params[k] for k in ACCEPTS[backend]}
 
 
 def run_positions(backend: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray]) -> np.ndarray:
     """Filter the measured boxes ``y`` (T, 4) once per candidate: ``params`` maps names to arrays (A,);
-    only the parameters ``backend`` accepts are passed. Returns position estimates (A, T, 4) cx, cy, w, h."""
-    n = len(next(iter(params.values())))
-    tau_run, used = _in_frames(backend, np.float64(tau), params)
-    flt = filters.make(backend, box_model(float(tau_run)), **used)
-    return flt.positions(np.broadcast_to(y, (n, *y.shape)))
+    only the parameters ``backend`` accepts are passed. Returns position estimates (A, T, 4) cx, cy, w, h
+    (:func:`filters.candidate_positions`, which also handles frame units)."""
+    return filters.candidate_positions(backend, y, tau, _used(backend, params))
 
 
 def run_tracks(backend: str, ys: list[np.ndarray], taus: list[float], params: dict[str, np.ndarray]) -> list[np.ndarray]:
     """Filter B tracks, each with its own parameter set: ``ys`` B arrays (T_b, 4), ``taus`` their frame
-    intervals, ``params`` arrays (B,). Returns the position estimates, B arrays (T_b, 4).
-
-    Tracks of equal length and frame interval run in one batched call (for FIR back ends, which run in
-    frame units, the interval does not matter). Each track's estimate equals :func:`run_positions` on it."""
-    taus, used = _in_frames(backend, np.asarray(taus, dtype=float), params)
-    lengths = np.array([len(y) for y in ys])
-    out: list[np.ndarray] = [np.empty(0)] * len(ys)
-    for T, tau in sorted(set(zip(lengths.tolist(), taus.tolist()))):
-        rows = np.flatnonzero((lengths == T) & (taus == tau))
-        flt = filters.make(backend, box_model(tau), **{k: v[rows] for k, v in used.items()})
-        est = flt.positions(np.stack([ys[r] for r in rows]))
-        for i, r in enumerate(rows):
-            out[r] = est[i]
-    return out
+    intervals, ``params`` arrays (B,). Returns the position estimates, B arrays (T_b, 4), each equal to
+    :func:`run_positions` on its track (:func:`filters.track_positions`: tracks of equal length share a call)."""
+    return filters.track_positions(backend, ys, taus, _used(backend, params))
 
 
 def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
@@ -138,6 +116,11 @@ def reference_scores(baseline: str, rule_scores: dict[str, np.ndarray], ys: list
     rule's (``rule_scores``, returned as they are) or the unfiltered measurements' ``ys`` (B arrays (T_b, 4);
     a frame without a measurement is a missing estimate, as :func:`score_estimates` counts it)."""
     return rule_scores if baseline == "rule" else score_tracks(ys, truths)
+
+
+def reward_label(kind: str, baseline: str = "rule") -> str:
+    """What a reward of ``kind`` against ``baseline`` (``"rule"`` | ``"raw"``) measures, for printing."""
+    return f"log(RMSE_{baseline}/RMSE)" if kind == "rmse" else f"{kind} minus the {baseline}'s"
 
 
 def reward_from(scores: dict[str, np.ndarray], rule: dict[str, float], kind: str) -> np.ndarray:

@@ -242,7 +242,11 @@ def test_bad_carry_is_refused() -> None:
         one.repeat(0)
 
 
-def test_fir_family_has_no_run_from() -> None:
-    f = filters.make("ufir", filters.constant_velocity(TAU), horizon=10)
-    with pytest.raises(NotImplementedError, match="ufir"):
-        f.run_from(np.zeros((20, 1)))
+def test_a_fir_filter_refuses_a_kalman_carry_and_a_kalman_filter_a_history() -> None:
+    y = np.zeros((20, 1))
+    _, carry = filters.make("kf", filters.constant_velocity(TAU)).run_from(y)
+    _, history = filters.make("ufir", filters.constant_velocity(TAU), horizon=10).run_from(y)
+    with pytest.raises(TypeError, match="ufir: carry is a Carry; allowed: None or a filters.history.History"):
+        filters.make("ufir", filters.constant_velocity(TAU), horizon=10).run_from(y, carry)
+    with pytest.raises((TypeError, AttributeError, ValueError)):
+        filters.make("kf", filters.constant_velocity(TAU)).run_from(y, history)

@@ -240,8 +240,10 @@ def test_empty_batches_and_tracks(name: str) -> None:
     empty = filters.make(name, model, **{per_track: np.array([], dtype=float if per_track == "sigma_v" else int)})
     assert empty.run(np.zeros((0, 20, 4))).shape == (0, 20, 8)
     if name not in KALMAN:
-        with pytest.raises(NotImplementedError, match=name):
-            flt.run_from(np.zeros((0, 50, 4)))
+        states, history = flt.run_from(np.zeros((0, 50, 4)))
+        assert states.shape == (0, 50, 8) and history.y.shape == (0, 50, 4)
+        states, history = flt.run_from(np.zeros((2, 0, 4)))
+        assert states.shape == (2, 0, 8) and history.y.shape == (2, 0, 4)
         return
     states, carry = flt.run_from(np.zeros((0, 50, 4)))
     assert states.shape == (0, 50, 8) and carry.x.shape == (0, 8) and carry.P.shape == (0, 8, 8)

@@ -1,0 +1,65 @@
+"""Batch runners: one back end over many tracks, each with its own parameter set and frame interval, in as few
+filter calls as the tracks allow.
+
+Frame units are handled here and only here: a back end exact in frame units (``IN_FRAMES``: the FIR family, KF,
+KF-CMN) runs every track at τ = 1 with its parameters converted (:meth:`filters.base.Filter.params_in_frames`:
+σ_w → σ_w τ², a prior's velocities × τ), so tracks of any τ share one cached model and one call; the others
+(UKF) run at each track's τ. Position estimates are the same either way (to round-off; tests/filters/
+test_batch.py). Models are the constant-velocity models of :func:`filters.constant_velocity`, cached.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import lru_cache
+
+import numpy as np
+
+from filters.base import Filter
+from filters.model import StateSpaceModel, constant_velocity
+from filters.registry import filter_class
+
+
+@lru_cache(maxsize=64)
+def cv_model(tau: float, ndim: int) -> StateSpaceModel:
+    """The constant-velocity model of ``ndim`` coordinates at frame interval ``tau`` (s), cached (models are
+    immutable)."""
+    return constant_velocity(tau, ndim=ndim)
+
+
+def _run_intervals(cls: type[Filter], taus: np.ndarray, params: dict[str, np.ndarray]
+                   ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The intervals to run at and the parameters to run with (module docstring)."""
+    params = {k: np.asarray(v) for k, v in params.items()}
+    if cls.IN_FRAMES:
+        return np.ones_like(taus), cls.params_in_frames(params, taus)
+    return taus, params
+
+
+def candidate_positions(name: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray]) -> np.ndarray:
+    """Back end ``name`` on one track ``y`` (T, M) once per candidate: ``params`` maps the back end's parameter
+    names to arrays (A,). Returns the position estimates (A, T, M)."""
+    cls = filter_class(name)
+    n = len(next(iter(params.values())))
+    tau_run, used = _run_intervals(cls, np.float64(tau), params)
+    flt = cls(cv_model(float(tau_run), y.shape[-1]), **used)
+    return flt.positions(np.broadcast_to(y, (n, *y.shape)))
+
+
+def track_positions(name: str, ys: Sequence[np.ndarray], taus: Sequence[float],
+                    params: dict[str, np.ndarray]) -> list[np.ndarray]:
+    """Back end ``name`` on B tracks ``ys`` (T_b, M), each at its own interval ``taus[b]`` (s) with its own
+    parameters ``params`` (arrays (B,)): tracks of equal length (and, outside frame units, equal τ) run in one
+    call. Returns the position estimates, B arrays (T_b, M), each equal to :func:`candidate_positions` on its
+    track alone."""
+    cls = filter_class(name)
+    taus_run, used = _run_intervals(cls, np.asarray(taus, dtype=float), params)
+    lengths = np.array([len(y) for y in ys])
+    out: list[np.ndarray] = [np.empty(0)] * len(ys)
+    for T, tau in sorted(set(zip(lengths.tolist(), taus_run.tolist()))):
+        rows = np.flatnonzero((lengths == T) & (taus_run == tau))
+        flt = cls(cv_model(tau, ys[rows[0]].shape[-1]), **{k: v[rows] for k, v in used.items()})
+        est = flt.positions(np.stack([ys[r] for r in rows]))
+        for i, r in enumerate(rows):
+            out[r] = est[i]
+    return out

@@ -1,0 +1,38 @@
+"""The back ends by name: :data:`NAMES`, :func:`filter_class`, :func:`make` (each module is imported on first use)."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from importlib import import_module
+from typing import Any
+
+from filters.base import Filter
+from filters.model import StateSpaceModel
+
+NAMES: tuple[str, ...] = ("kf", "kf_cmn", "ufir", "ufir_cmn", "ofir", "oufir", "fir", "ukf")
+
+# name -> (module, class); imported on first use
+_REGISTRY: dict[str, tuple[str, str]] = {
+    "kf": ("filters.kf", "KF"),
+    "kf_cmn": ("filters.kf_cmn", "KFCMN"),
+    "ufir": ("filters.ufir", "UFIR"),
+    "ufir_cmn": ("filters.ufir_cmn", "UFIRCMN"),
+    "ofir": ("filters.ofir", "OFIR"),
+    "oufir": ("filters.oufir", "OUFIR"),
+    "fir": ("filters.fir", "KwonFIR"),
+    "ukf": ("filters.ukf", "UKF"),
+}
+
+
+@lru_cache(maxsize=None)
+def filter_class(name: str) -> type[Filter]:
+    """The :class:`Filter` subclass of back end ``name`` (one of :data:`NAMES`)."""
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown filter {name!r}; allowed: {', '.join(NAMES)}")
+    module, cls = _REGISTRY[name]
+    return getattr(import_module(module), cls)
+
+
+def make(name: str, model: StateSpaceModel, **params: Any) -> Filter:
+    """Configure back end ``name`` for ``model``; ``params`` as documented by its class."""
+    return filter_class(name)(model, **params)
