@@ -62,7 +62,7 @@ class FilterTuneEnv(TrackEnv):
 
     ## Rewards
     ``reward="rmse"`` (default): log(RMSE_rule / RMSE_action), RMSE over all frames with ground truth of the
-    (cx, cy, w, h) error in px — scale-free, 0 means as good as the rule. ``"iou_precision"`` (seed 001's
+    (cx, cy, w, h) error in px — scale-free, 0 means as good as the rule. ``"iou_precision"`` ([PaleRamon-BBox]'s
     TP/(TP+FP) averaged over 21 IoU thresholds) and ``"success_auc"`` (OTB success AUC): action minus rule.
     ``reward_baseline="raw"`` measures the same against the unfiltered measurements instead of the rule
     (log(RMSE_raw / RMSE), action minus raw): per episode the rewards move by a constant, so the best action

@@ -1,4 +1,4 @@
-"""Kwon's minimum-variance FIR filter in the C̄_N, Ḡ_N, Π_N form of seed 004 (eqs. 5–13; notes §1.7).
+"""Kwon's minimum-variance FIR filter in the C̄_N, Ḡ_N, Π_N form of [Mo-FIR] (eqs. 5–13; notes §1.7).
 
 Seed 004 writes the filter for the forward-Euler model ``s_{k+1} = A s_k + w_k`` as a one-step predictor of s_k
 from ``z_{k−N} … z_{k−1}``. Here the same construction is applied to this project's model (``x_l = F x_{l−1} +
@@ -34,7 +34,7 @@ from filters.oufir import COND_MAX, OUFIR, window_gls_gain, window_model
 
 def kwon_gain(F: np.ndarray, H: np.ndarray, B: np.ndarray, valid: np.ndarray, sigma_w: float,
               sigma_v: float) -> np.ndarray:
-    """Kwon FIR gain (K, L) of one window by seed 004 eqs. (5)–(13); zero at invalid samples."""
+    """Kwon FIR gain (K, L) of one window by [Mo-FIR] eqs. (5)–(13); zero at invalid samples."""
     valid = np.asarray(valid, bool)
     ratio = sigma_w / sigma_v  # Π_N / σ_v² = ratio² Ḡ_N Ḡ_Nᵀ + I: only the ratio matters
     F_last, C_N, G_N, M_N = window_model(F, H, B, valid.size)  # eqs. (11), (12), (13)
@@ -52,7 +52,7 @@ def kwon_gain(F: np.ndarray, H: np.ndarray, B: np.ndarray, valid: np.ndarray, si
 
 
 class KwonFIR(OUFIR):
-    """Kwon's minimum-variance FIR filter (seed 004 eqs. 5–13), filtered form on the last N frames.
+    """Kwon's minimum-variance FIR filter ([Mo-FIR] eqs. 5–13), filtered form on the last N frames.
 
     Parameters as :class:`filters.oufir.OUFIR`: ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v``
     (measurement noise std, units), ``horizon`` N (integer >= 2; None → :func:`filters.horizon.rule_horizon`),

@@ -8,7 +8,7 @@ from filters.validation import check_sigma, check_tau
 
 
 def n_opt(sigma_v: float | np.ndarray, sigma_w: float | np.ndarray, tau: float | np.ndarray) -> float | np.ndarray:
-    """``N_opt = sqrt(12 σ_v / (τ² σ_w))`` (seed 000 §II-D; seed 001 eq. for N_opt).
+    """``N_opt = sqrt(12 σ_v / (τ² σ_w))`` ([Shmaliy-CMN] §II-D; [PaleRamon-BBox] eq. for N_opt).
 
     Convention: σ_w is the std of white *acceleration* noise entering through ``B = [τ²/2, τ]ᵀ`` (the
     velocity increment per step has std τσ_w) and σ_v the std of the white measurement noise. (If σ_w were

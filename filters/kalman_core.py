@@ -19,7 +19,7 @@ Frame kinds (per channel and frame):
 * ``INIT``   — first finite measurement without a prior: x = [y_n, 0], P = the start covariance.
 * ``PREDICT``— no usable measurement: x = F x, P = F P Fᵀ + Q (missing data).
 * ``UPDATE_Y``— predict, then a standard update on y_n (D = H).
-* ``UPDATE_Z``— KF-CMN: de-correlated predict + update on the differenced z_n (seed 000 Algorithm 1).
+* ``UPDATE_Z``— KF-CMN: de-correlated predict + update on the differenced z_n ([Shmaliy-CMN] Algorithm 1).
 
 A continued run (:meth:`filters.base.Filter.run_from`) starts a channel from its carried posterior state and
 covariance (a prior for frame 0) and hands back the covariance at the last frame: the last P of its row's
@@ -56,7 +56,7 @@ class StepTables:
 
     A: np.ndarray  # (5, 2, 2, G) transition used by the predict
     Q: np.ndarray  # (5, 2, 2, G) process noise covariance of that predict
-    Lam: np.ndarray  # (5, 2, G) input gain on the measurement (Λ of seed 000 eq. 10; 0 for a plain KF)
+    Lam: np.ndarray  # (5, 2, G) input gain on the measurement (Λ of [Shmaliy-CMN] eq. 10; 0 for a plain KF)
     D: np.ndarray  # (5, 2, G) observation row (0 for PREDICT: gain 0, covariance unchanged)
     R: np.ndarray  # (5, G) measurement noise variance (1 where unused)
 
@@ -181,7 +181,7 @@ def gain_recursion(kinds: np.ndarray, tables: StepTables,
 
 
 def joseph_step(t: tuple, P: tuple) -> tuple[tuple, tuple]:
-    """One frame of seed 000 Algorithm 1 on the entries of 2×2 matrices (Python floats or arrays over rows):
+    """One frame of [Shmaliy-CMN] Algorithm 1 on the entries of 2×2 matrices (Python floats or arrays over rows):
     table entries ``t`` = (A row-major, Q row-major, Λ, D, R) and the previous posterior ``P`` (row-major) →
     the new posterior (Joseph form) and the affine coefficients [M = (I − K D) A row-major, g = (I − K D) Λ + K]."""
     a00, a01, a10, a11, q00, q01, q10, q11, l0, l1, d0, d1, r = t

@@ -1,4 +1,4 @@
-"""Standard Kalman filter (seed 001 §"Kalman filter" / seed 002 Algorithm 1; notes §1.0), batched.
+"""Standard Kalman filter ([PaleRamon-BBox] §"Kalman filter" / [PaleRamon-CMN] Algorithm 1; notes §1.0), batched.
 
 Per coordinate: ``F = [[1, τ], [0, 1]]``, ``H = [1, 0]``, ``Q = σ_w² B Bᵀ`` with ``B = [τ²/2, τ]ᵀ``,
 ``R = σ_v²``.

@@ -1,7 +1,7 @@
-"""Kalman filter for Gauss–Markov coloured measurement noise (seed 000 Algorithm 1: backward Euler,
+"""Kalman filter for Gauss–Markov coloured measurement noise ([Shmaliy-CMN] Algorithm 1: backward Euler,
 measurement differencing, de-correlated noise sources), batched.
 
-Model per coordinate (seed 000 eqs. 1–3): ``x_n = F x_{n-1} + B w_n``, ``v_n = ψ v_{n-1} + ξ_n``,
+Model per coordinate ([Shmaliy-CMN] eqs. 1–3): ``x_n = F x_{n-1} + B w_n``, ``v_n = ψ v_{n-1} + ξ_n``,
 ``y_n = H x_n + v_n`` with ``Q = σ_w² B Bᵀ`` and ``ξ_n ~ N(0, σ_v²)`` (σ_v is the paper's σ_ξ).
 The differenced measurement ``z_n = y_n − ψ y_{n-1} = D x_n + v̄_n`` (eqs. 4–5) has white noise v̄_n that is
 correlated with w_n (eqs. 6–7); Algorithm 1 de-correlates them (eqs. 8–11):
@@ -88,7 +88,7 @@ class KFCMN(FramePrior, Filter):
 
 def cmn_tables(axis: StateSpaceModel, p: np.ndarray) -> StepTables:
     """Step tables of G rows ``p`` = [σ_w, σ_v, ψ] (G, 3): standard KF kinds plus the de-correlated
-    UPDATE_Z step of seed 000 Algorithm 1 (matrices stored row-last, (2, 2, G))."""
+    UPDATE_Z step of [Shmaliy-CMN] Algorithm 1 (matrices stored row-last, (2, 2, G))."""
     sigma_w, sigma_v, psi = p.T
     F, H, I = axis.F[:, :, None], axis.H[0][:, None], np.eye(2)[:, :, None]
     Q = (axis.B @ axis.B.T)[:, :, None] * sigma_w**2  # Q = σ_w² B Bᵀ

@@ -1,4 +1,4 @@
-"""OFIR: the optimal (MMSE) FIR filter with a horizon-start prior (seed 001 Alg. 2; notes §1.5).
+"""OFIR: the optimal (MMSE) FIR filter with a horizon-start prior ([PaleRamon-BBox] Alg. 2; notes §1.5).
 
 Seed 001 Alg. 2 runs the KF (Alg. 1) over the horizon ``i = m+1 … n`` from a prior ``x_m ~ (x̄_m, P_m)`` and
 outputs x̂_n. The paper takes (x̄_m, P_m) from a running KF, which makes the filter IIR again. To stay a fixed FIR
@@ -34,7 +34,7 @@ def default_prior(sigma_v: float, tau: float) -> np.ndarray:
 def ofir_gain(F: np.ndarray, H: np.ndarray, B: np.ndarray, valid: np.ndarray, sigma_w: float, sigma_v: float,
               P0: np.ndarray) -> np.ndarray:
     """OFIR gain (K, L) of one window: prior ``x̄_a = Hᵀ y_a`` with covariance ``P0`` at the oldest valid sample
-    a, updated by the valid samples after it (batch form of seed 001 Alg. 2; notes §1.5)."""
+    a, updated by the valid samples after it (batch form of [PaleRamon-BBox] Alg. 2; notes §1.5)."""
     valid = np.asarray(valid, bool)
     a = int(np.argmax(valid))
     later = valid[a:].copy()
@@ -91,7 +91,7 @@ def check_prior(P0: object, sigma_v: np.ndarray, tau: float) -> np.ndarray | Non
 
 
 class OFIR(KalmanWindowFIR):
-    """Optimal FIR filter (seed 001 Alg. 2) with the data-linear horizon-start prior of this module.
+    """Optimal FIR filter ([PaleRamon-BBox] Alg. 2) with the data-linear horizon-start prior of this module.
 
     Parameters: ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v`` (measurement noise std, units),
     ``horizon`` N (integer >= 2; None → :func:`filters.horizon.rule_horizon`) — each a scalar or (B,) per track;

@@ -1,4 +1,4 @@
-"""OUFIR: the optimal unbiased (minimum-variance unbiased) FIR filter (seed 001 Alg. 4; notes §1.6).
+"""OUFIR: the optimal unbiased (minimum-variance unbiased) FIR filter ([PaleRamon-BBox] Alg. 4; notes §1.6).
 
 Per coordinate channel a window holds the L raw samples ``y_m … y_n`` (oldest first, ``m = n − L + 1``) of the
 two-state model ``x_l = F x_{l−1} + B w_l``, ``y_l = H x_l + v_l``, ``w ~ N(0, σ_w²)`` (acceleration),
@@ -12,7 +12,7 @@ and the OFIR with an infinitely wide prior. Only the ratio σ_w/σ_v enters the 
 
 Conventions: missing samples (``valid`` False) are dropped from Y, C_f and G_w (the process noise of every step
 stays), so a window with gaps gives the exact OUFIR of its observed samples. Start-up windows (frames 0 … n,
-n < N − 1) give the full-horizon OUFIR on the samples so far (seed 001 Alg. 4, "m = 0 otherwise"); a window with
+n < N − 1) give the full-horizon OUFIR on the samples so far ([PaleRamon-BBox] Alg. 4, "m = 0 otherwise"); a window with
 fewer than 2 valid samples outputs the latest valid measurement with velocity 0 (:mod:`filters.fir_core`).
 Clean full windows apply the batch gain :func:`oufir_gain` as a kernel; start-up frames and windows holding a NaN
 use the same estimator in its recursive form (K-point UFIR start + KF, or the associative composition of
@@ -101,7 +101,7 @@ def window_gls_gain(F: np.ndarray, H: np.ndarray, B: np.ndarray, valid: np.ndarr
 
 def oufir_gain(F: np.ndarray, H: np.ndarray, B: np.ndarray, valid: np.ndarray, sigma_w: float,
                sigma_v: float) -> np.ndarray:
-    """OUFIR gain (K, L) of one window (notes §1.6; the batch form of seed 001 Alg. 4)."""
+    """OUFIR gain (K, L) of one window (notes §1.6; the batch form of [PaleRamon-BBox] Alg. 4)."""
     return window_gls_gain(F, H, B, np.asarray(valid, bool), sigma_w / sigma_v)[0]
 
 
@@ -123,7 +123,7 @@ def ufir_init(F: np.ndarray, H: np.ndarray, B: np.ndarray, offsets: np.ndarray) 
 
 def kf_step(x: np.ndarray, P: np.ndarray, y: float, F: np.ndarray, H: np.ndarray, Q: np.ndarray,
             R: float) -> tuple[np.ndarray, np.ndarray]:
-    """One step of seed 001 Alg. 1 (notes §1.0): predict, then update with ``y`` unless it is NaN (Joseph form)."""
+    """One step of [PaleRamon-BBox] Alg. 1 (notes §1.0): predict, then update with ``y`` unless it is NaN (Joseph form)."""
     x, P = F @ x, F @ P @ F.T + Q
     if np.isnan(y):
         return x, P
@@ -317,7 +317,7 @@ class KalmanWindowFIR(FIRFilter):
 
 
 class OUFIR(KalmanWindowFIR):
-    """Optimal unbiased FIR filter (seed 001 Alg. 4): minimum-variance unbiased over the last N frames.
+    """Optimal unbiased FIR filter ([PaleRamon-BBox] Alg. 4): minimum-variance unbiased over the last N frames.
 
     Parameters (all per track: scalar or (B,)): ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v``
     (measurement noise std, units), ``horizon`` N (integer >= 2; None → :func:`filters.horizon.rule_horizon`).

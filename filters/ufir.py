@@ -1,4 +1,4 @@
-"""UFIR: the unbiased finite impulse response filter (seed 001 Alg. 3; seed 000 Alg. 2 with ψ = 0; notes §1.1–1.2).
+"""UFIR: the unbiased finite impulse response filter ([PaleRamon-BBox] Alg. 3; [Shmaliy-CMN] Alg. 2 with ψ = 0; notes §1.1–1.2).
 
 Per coordinate channel the horizon holds the N measurements ``y_m … y_n`` (``m = n − N + 1``, oldest first)
 of the two-state model ``x_l = F x_{l−1} + B w_l``, ``y_l = H x_l + v_l``. Back-projecting every state to
@@ -274,7 +274,7 @@ def ramp_gain(N: int, tau: float) -> np.ndarray:
 
 
 def ufir_iterative(y: np.ndarray, F: np.ndarray, H: np.ndarray, N: int, psi: float = 0.0) -> np.ndarray:
-    """Reference: seed 000 Algorithm 2 (UFIR for CMN; ψ = 0 is the standard UFIR, seed 001 Alg. 3) run
+    """Reference: [Shmaliy-CMN] Algorithm 2 (UFIR for CMN; ψ = 0 is the standard UFIR, [PaleRamon-BBox] Alg. 3) run
     literally for every output point n of one track ``y`` (T,) or (T, p) with ``H`` (p, K) — a K-point
     batch start and the G recursion over the horizon. O(N) K×K steps per point: for tests and benchmarks only.
 

@@ -1,6 +1,6 @@
-"""UFIR-CMN: the UFIR filter for Gauss–Markov coloured measurement noise (seed 000 Alg. 2; notes §1.3).
+"""UFIR-CMN: the UFIR filter for Gauss–Markov coloured measurement noise ([Shmaliy-CMN] Alg. 2; notes §1.3).
 
-Measurement noise ``v_l = ψ v_{l−1} + ξ_l`` is whitened by differencing (seed 000 eqs. 4–5, backward Euler):
+Measurement noise ``v_l = ψ v_{l−1} + ξ_l`` is whitened by differencing ([Shmaliy-CMN] eqs. 4–5, backward Euler):
 
     z_l = y_l − ψ y_{l−1} = D x_l + v̄_l,      D = H − ψ H F⁻¹        (CV model: D = [1 − ψ, ψτ])
 
@@ -54,7 +54,7 @@ class UFIRCMN(UFIR):
 
     def window_gains(self, valid: np.ndarray, params: dict[str, np.ndarray]) -> np.ndarray:
         diff, C = self._rows(valid, params)
-        A = ls_gains(C)  # gains on the rows (z or y), seed 000 Alg. 2 batch form
+        A = ls_gains(C)  # gains on the rows (z or y), [Shmaliy-CMN] Alg. 2 batch form
         psi = params["psi"][:, None, None]
         W = A.copy()  # fold z_l = y_l − ψ y_{l−1} into weights on raw samples
         W[:, :, :-1] -= psi * A[:, :, 1:] * diff[:, None, 1:]

@@ -1,7 +1,7 @@
-"""Unscented Kalman filter (seed 003 Algorithm 1, Wan–van der Merwe scaled sigma points; notes §1.8), batched
-over channels, with an optional camera-motion augmented model (seed 003 eq. 17).
+"""Unscented Kalman filter ([Raj-UKF] Algorithm 1, Wan–van der Merwe scaled sigma points; notes §1.8), batched
+over channels, with an optional camera-motion augmented model ([Raj-UKF] eq. 17).
 
-Sigma points and weights (seed 003 eq. 1), n = state size of a channel:
+Sigma points and weights ([Raj-UKF] eq. 1), n = state size of a channel:
 
     λ = α²(n + κ) − n;  χ_0 = x,  χ_i = x ± [√((n + λ) P)]_i  (Cholesky columns)
     W_0^m = λ/(n + λ),  W_0^c = λ/(n + λ) + 1 − α² + β,  W_i^m = W_i^c = 1/(2(n + λ))
@@ -10,7 +10,7 @@ Each frame: predict (eqs. 6–8) χ ← f(χ), x⁻ = Σ W^m χ, P⁻ = Σ W^c (
 are then re-drawn from (x⁻, P⁻) as in filterpy master (fix of filterpy issue #172); update (eqs. 9–12)
 Z = h(χ), ẑ = Σ W^m Z, S = Σ W^c (Z − ẑ)(Z − ẑ)ᵀ + R, P_xz = Σ W^c (χ − x⁻)(Z − ẑ)ᵀ, K = P_xz S⁻¹,
 x = x⁻ + K (y − ẑ), P = P⁻ − K S Kᵀ. Noise is additive (Q, R added to the transformed covariances) rather
-than carried as extra sigma-point dimensions (the augmented x^a of seed 003 eq. 5); for additive noise
+than carried as extra sigma-point dimensions (the augmented x^a of [Raj-UKF] eq. 5); for additive noise
 both give the same filter on linear models.
 
 Linear model, computed as such. f and h are linear here (f = F, h = H) and the sigma points are symmetric about
@@ -18,7 +18,7 @@ their centre, so their weighted means are exactly x⁻ = F x and ẑ = H x⁻; t
 passes only the covariances through the sigma points, drawn around 0 (χ_0 = 0, χ_i = ±[√((n + λ) P)]_i, with
 n + λ computed as α²(n + κ)). Deviations from the exact mean make χ_0's deviation zero, so β (and W_0^c) has no
 effect on this linear model. A generic UKF instead forms Σ W^m χ around x, adding rounding of order
-eps·|W_i|·‖√P‖ to the means — 2e4 px of error on a 200 px track with σ_v = 1e20, ~1e-9 relative with seed 003's
+eps·|W_i|·‖√P‖ to the means — 2e4 px of error on a 200 px track with σ_v = 1e20, ~1e-9 relative with [Raj-UKF]'s
 α = 1e-3 (W_0^m ≈ −1e6), all digits at per-frame noise ratios σ_w τ²/σ_v beyond 1e14 or for κ next to −2.
 The covariance recursion does not depend on the data, so — as for :class:`filters.kf.KF`
 (:mod:`filters.kalman_core`) — it runs once per unique (parameters, prior, frame kinds) row until its steady state
@@ -29,7 +29,7 @@ the camera-motion channels (3 states, 2 measurements) run the same linear UKF fr
 1e-12 relative) and over the whole parameter range of :mod:`filters.validation` (position error against a
 40-digit reference <= 3e-13 relative for noise ratios from 1e-12 to 1e100).
 
-Camera motion (``camera_motion=True``; seed 003 eq. 17)
+Camera motion (``camera_motion=True``; [Raj-UKF] eq. 17)
 --------------------------------------------------------
 Eq. 17 augments the object state (position x(1,2), velocity x(3,4)) with the image frame's position x(5,6)
 and the camera velocity x(7,8). Detections measure the object relative to the frame, so only that
@@ -45,7 +45,7 @@ supplies it, ``u_n = c_n + N(0, σ_u²)`` — e.g. the global image shift betwee
 correlation / background feature flow) divided by τ, in units/s. With u the filter separates a smooth object
 motion from camera jitter (test: position RMSE 0.71 vs 1.43 px for the best uncompensated filter, σ_w = 2,
 σ_c = 200, σ_v = 2, σ_u = 5); without u, (q, r) follow a constant-velocity model with acceleration variance
-σ_w² + σ_c² (c is then unobservable and does not affect the output). As σ_u → 0 the model approaches seed 003
+σ_w² + σ_c² (c is then unobservable and does not affect the output). As σ_u → 0 the model approaches [Raj-UKF]
 eq. 18 (camera velocity as a known input). Camera states are added to the first min(M, 2) coordinates
 (cx, cy), so eq. 17's 8 states become 2 × 3 (the unobservable frame position is not carried); box size
 (w, h) is not affected by camera translation. Output is the image state [q, r], like every other filter.
@@ -85,7 +85,7 @@ class UKF(Filter):
     for n = 2 states), ``sigma_c`` (camera acceleration noise std, units/s²) and ``sigma_u`` (std of the
     camera-velocity measurement u, units/s) — the last two only with ``camera_motion=True``. Shared: ``x0`` (K,),
     ``P0`` (K, K), ``camera_motion`` (bool). σ's within :data:`filters.validation.SIGMA_RANGE`.
-    Defaults α = 1, β = 2, κ = 0 (seed 003 suggests α = 1e-3; any α in range is accurate, module docstring)."""
+    Defaults α = 1, β = 2, κ = 0 ([Raj-UKF] suggests α = 1e-3; any α in range is accurate, module docstring)."""
 
     name: ClassVar[str] = "ukf"
     DEFAULTS: ClassVar[dict[str, Any]] = {
@@ -162,7 +162,7 @@ class UKF(Filter):
 
 def scaled_weights(n: int, alpha: np.ndarray, beta: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per channel (C,): the sigma-point scale n + λ = α²(n + κ) (C,) (computed so, not as n + λ, which cancels
-    to 0 for α²(n + κ) ≪ n) and the covariance weights W^c (2n+1, C) (seed 003 eq. 1): W_0^c = λ/(n + λ) + 1 − α²
+    to 0 for α²(n + κ) ≪ n) and the covariance weights W^c (2n+1, C) ([Raj-UKF] eq. 1): W_0^c = λ/(n + λ) + 1 − α²
     + β, W_i^c = 1/(2(n + λ)). (The mean weights W^m are not needed: for a linear model the weighted mean of the
     symmetric points is the centre itself, module docstring.)"""
     spread = alpha**2 * (n + kappa)
@@ -193,7 +193,7 @@ def matrix_root(A: np.ndarray) -> np.ndarray:
 
 
 def sigma_deviations(P: np.ndarray, spread: np.ndarray) -> np.ndarray:
-    """The sigma points' deviations from their centre, [0, +√((n+λ)P)_i, −√((n+λ)P)_i] (seed 003 eqs. 1, 6):
+    """The sigma points' deviations from their centre, [0, +√((n+λ)P)_i, −√((n+λ)P)_i] ([Raj-UKF] eqs. 1, 6):
     P (n, n, C) → (2n+1, n, C); √ is :func:`matrix_root` and [·]_i its column i."""
     offsets = matrix_root(spread * P).transpose(1, 0, 2)  # row i = column i of the root
     return np.concatenate([np.zeros_like(offsets[:1]), offsets, -offsets], axis=0)

@@ -211,7 +211,7 @@ def rmse(est: ArrayLike, truth: ArrayLike) -> np.ndarray:
 def rmse_total(est: ArrayLike, truth: ArrayLike) -> np.ndarray:
     """Overall (Euclidean) RMSE sqrt(Σ_c MSE_c) = sqrt(mean_t Σ_c e²_tc): (..., T, M) → (...).
 
-    For positions this is the RMS distance in pixels (seed 004's "RMSE between real and predicted position")."""
+    For positions this is the RMS distance in pixels ([Mo-FIR]'s "RMSE between real and predicted position")."""
     return np.sqrt((rmse(est, truth) ** 2).sum(axis=-1))
 
 

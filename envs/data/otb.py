@@ -47,7 +47,7 @@ OTB_ROOT_ENV = "OTB_ROOT"
 ATTRIBUTES = ("IV", "SV", "OCC", "DEF", "MB", "FM", "IPR", "OPR", "OV", "BC", "LR")
 _FOLDER_FIRST_FRAME = {"BlurCar1": 247, "BlurCar3": 3, "BlurCar4": 18, "David": 300}  # image of line 1
 _TIGER1_OMIT = 5  # OTB toolkit initOmit: Tiger1's original 354-line file starts 5 frames early
-_REPLAY_TAU = 0.05  # s, default sampling interval assumed by the filters (seed 000 Car4 tuning: 20 frames/s)
+_REPLAY_TAU = 0.05  # s, default sampling interval assumed by the filters ([Shmaliy-CMN] Car4 tuning: 20 frames/s)
 
 # The default split of the 13 trackers under shared/data/otb/trackers (EnvConfig.trackers): "test" is held out,
 # never trained on, so "unseen tracker" results exist — one of each kind: a strong Siamese tracker (SiamRPN++),

@@ -7,7 +7,7 @@ the first regime, and adds, from an independent generator ``default_rng((noise_s
 * **noise regimes** — ``noise_switches`` switch times (uniform, distinct, in [T // 10, T − T // 10), so that no regime is a sliver at either end); each new regime draws
   ψ (uniform in ``psi_range``) and σ_ξ (log-uniform in ``sigma_xi_range``) afresh — a detector that starts or
   stops drifting. The CMN runs on across a switch: v_n = ψ_k v_{n−1} + ξ_n, ξ_n ~ N(0, σ_ξ,k²) in regime k
-  (seed 000 eq. 2 with piecewise-constant ψ, σ_ξ);
+  ([Shmaliy-CMN] eq. 2 with piecewise-constant ψ, σ_ξ);
 * **manoeuvre bursts** — ``manoeuvres`` intervals of ``manoeuvre_frames`` frames (cut at the track's end) at
   uniform start frames, in which the centre's acceleration noise is σ_w × ``manoeuvre_gain`` (the box sizes
   are unaffected);

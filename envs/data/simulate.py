@@ -1,14 +1,14 @@
 """Simulated tracks: constant-velocity truth plus Gauss–Markov coloured measurement noise (CMN).
 
-Model (seed 000 eqs. 1–3, backward Euler; per coordinate, every coordinate independent):
+Model ([Shmaliy-CMN] eqs. 1–3, backward Euler; per coordinate, every coordinate independent):
 
     x_n = F(τ+δ) x_{n−1} + B(τ) w_n,  F(t) = [[1, t], [0, 1]],  B(t) = [t²/2, t]ᵀ,  w_n ~ N(0, σ_w²)  (1)
     v_n = ψ v_{n−1} + ξ_n,           ξ_n ~ N(0, σ_ξ²),  v_0 ~ N(0, σ_ξ²/(1 − ψ²)) (stationary start)  (2)
     y_n = H x_n + v_n,               H = [1, 0]                                                     (3)
 
-The truth may use F(τ + δ) while the filters assume F(τ): seed 004's sampling-time error δ enters the
+The truth may use F(τ + δ) while the filters assume F(τ): [Mo-FIR]'s sampling-time error δ enters the
 transition matrix only (its eqs. 1 and 4: A has dt + δ, the process noise is unchanged), so B stays B(τ).
-Frame 0 holds the initial state ``x0`` exactly (P0 = 0, as seed 000).
+Frame 0 holds the initial state ``x0`` exactly (P0 = 0, as [Shmaliy-CMN]).
 
 Box tracks (``ndim = 4``, coordinates cx, cy, w, h in px): cx and cy follow (1) with σ_w. The sizes follow the
 same model in log space, ℓ = log(w / w_0) with ℓ_0 = 0, ℓ̇_0 = ẇ_0 / w_0 and acceleration noise
@@ -45,7 +45,7 @@ from scipy.signal import lfilter
 
 from envs.data.sim_motion import OTB_MOTION, draw_extra, otb_paths, reflect
 
-MOTIONS = ("cv", "otb")  # truth motion models: constant velocity (seed 000 eq. 1) or fitted to OTB-100
+MOTIONS = ("cv", "otb")  # truth motion models: constant velocity ([Shmaliy-CMN] eq. 1) or fitted to OTB-100
 _NDIMS = (1, 2, 4)  # scalar two-state, centroid (cx, cy), box (cx, cy, w, h)
 _DEFAULT_BOX_X0 = (320.0, 240.0, 64.0, 48.0, 0.0, 0.0, 0.0, 0.0)  # px, px/s: a 64×48 box at a VGA centre
 
@@ -69,7 +69,7 @@ class Scenario:
     tau: float = 0.05  # s: sampling interval the filters assume
     n_frames: int = 500  # T, frames per track (>= 2)
     ndim: int = 4  # 1: scalar two-state [p, v]; 2: centroid (cx, cy); 4: box (cx, cy, w, h)
-    delta: float = 0.0  # s: sampling-time error; the truth evolves with τ + δ (seed 004), τ + δ > 0
+    delta: float = 0.0  # s: sampling-time error; the truth evolves with τ + δ ([Mo-FIR]), τ + δ > 0
     x0: tuple[float, ...] | None = None  # (2·ndim,) initial true state [p…, v…]; None: zeros, or a 64×48 box
     sigma_w_log_size: float = 0.002  # 1/s²: acceleration noise std of log w and log h (ndim 4)
     size_noise_ratio: float = 0.5  # σ_ξ of the w, h measurements as a fraction of sigma_xi (ndim 4)

@@ -41,7 +41,7 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
 
     ``rmse``: sqrt(mean over frames of the squared Euclidean error of (cx, cy, w, h)) in px
     (:func:`envs.data.metrics.rmse_total`); ``iou_mean``; ``success_auc``, ``precision20`` and
-    ``iou_precision`` (seed 001's TP/(TP+FP), averaged over its 21 IoU thresholds) with the conventions of
+    ``iou_precision`` ([PaleRamon-BBox]'s TP/(TP+FP), averaged over its 21 IoU thresholds) with the conventions of
     :mod:`envs.data.metrics` — computed here from one IoU and one centre-error pass (the tests check equality
     with the metric functions). Frames without ground truth are left out; a missing estimate where the
     truth exists counts as a failure (IoU 0, infinite centre error) and is not a detection, and is left
@@ -77,7 +77,7 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
         overlap = np.where(scored, overlap, 0.0)
         within &= scored
     # per frame, the number of the 21 IoU thresholds below (success: IoU > t, strict as the OTB toolkit) and
-    # at or below (seed 001 true positive: IoU >= t) the frame's IoU; averaging these counts over frames and
+    # at or below ([PaleRamon-BBox] true positive: IoU >= t) the frame's IoU; averaging these counts over frames and
     # thresholds is the mean over thresholds of the per-threshold rates
     thresholds = metrics.SUCCESS_THRESHOLDS
     below = np.searchsorted(thresholds, overlap, side="left")

@@ -5,7 +5,7 @@ Lucas–Kanade; a RANSAC similarity separates the background (the majority) from
 displacement of its inliers is the apparent background shift ``d_n`` (px, frame n relative to n−1; frame 0
 has no predecessor: 0). On the synthetic generator this measures the true shift to about 0.02 px per frame.
 
-Two ways to use it (seed 003 §IV):
+Two ways to use it ([Raj-UKF] §IV):
 
 * UKF with the camera-augmented model of eq. 17 (``filters.make("ukf", ..., camera_motion=True)``), fed
   the apparent background velocity at each frame (:func:`background_velocity`, px/s) —

@@ -7,11 +7,11 @@ areas (pixel (i, j) covers [i, i + 1) × [j, j + 1)), float64 (4,). Frames are B
 
 | name       | method                                                                                   |
 |------------|------------------------------------------------------------------------------------------|
-| ``bgsub``  | mean of the last n frames as background (seed 003 eq. 13), ``|I − B| > T`` (eq. 14), largest blob |
+| ``bgsub``  | mean of the last n frames as background ([Raj-UKF] eq. 13), ``|I − B| > T`` (eq. 14), largest blob |
 | ``mog2``   | OpenCV's Gaussian-mixture background model (``createBackgroundSubtractorMOG2``), largest blob |
 | ``regions``| hue–saturation back-projection of the initial box → binary image; region labelling      |
-|            | (``connectedComponentsWithStats``) + contour search (``findContours``) as in seed 002     |
-| ``template``| normalised cross-correlation (seed 003 eq. 15, ``TM_CCOEFF_NORMED``), threshold, optional update |
+|            | (``connectedComponentsWithStats``) + contour search (``findContours``) as in [PaleRamon-CMN]     |
+| ``template``| normalised cross-correlation ([Raj-UKF] eq. 15, ``TM_CCOEFF_NORMED``), threshold, optional update |
 | ``sift``, ``orb`` | keypoints matched to the initial box (ratio test), RANSAC homography → box (or similarity) |
 
 The last four search near the last found box (``search`` × the box's larger side on each side), widening
@@ -50,7 +50,7 @@ def _clean(mask: np.ndarray, open_size: int, close_size: int) -> np.ndarray:
 
 
 class MeanBackground(Detector):
-    """Mean background subtraction (seed 003 §III-A): B = mean of the last ``n_frames`` frames (eq. 13,
+    """Mean background subtraction ([Raj-UKF] §III-A): B = mean of the last ``n_frames`` frames (eq. 13,
     kept as a running sum), foreground ``|I − B| > threshold`` (eq. 14) on grey levels, opening/closing,
     largest blob → box. Fails by design under camera motion or global illumination change (the paper's caveats)."""
 
@@ -102,7 +102,7 @@ class MOG2Background(Detector):
 
 
 class RegionDetector(Detector):
-    """Segmentation + region labelling + contour search (seed 002 §2). The object's colours are the
+    """Segmentation + region labelling + contour search ([PaleRamon-CMN] §2). The object's colours are the
     hue–saturation bins holding at least ``min_mass`` of the saturated pixels (S >= 60) in the central half
     of the initial box; back-projecting that bin set gives the binary image; label 8-connected regions
     (``connectedComponentsWithStats``), keep the largest region whose centroid lies in the search window,

@@ -1,4 +1,4 @@
-"""Appearance-matching detectors: NCC template matching (seed 003 §III-B) and keypoint matching (seed 003
+"""Appearance-matching detectors: NCC template matching ([Raj-UKF] §III-B) and keypoint matching ([Raj-UKF]
 §III-C uses SURF, which is patent-encumbered and absent from OpenCV's free build; SIFT and ORB stand in).
 
 Conventions as in :mod:`envs.video.detectors` (xywh, 0-based, continuous areas; NaN = nothing found).
@@ -40,7 +40,7 @@ class _Match:
 
 
 class TemplateDetector(Detector):
-    """Template matching by the correlation coefficient γ (seed 003 eq. 15; ``cv2.TM_CCOEFF_NORMED``) on grey
+    """Template matching by the correlation coefficient γ ([Raj-UKF] eq. 15; ``cv2.TM_CCOEFF_NORMED``) on grey
     levels; a peak below ``threshold`` is no detection. The peak is refined to sub-pixel by a parabola through
     its neighbours. Scales s are relative to the initial box and bounded by ``scale_range``.
 

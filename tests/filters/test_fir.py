@@ -1,4 +1,4 @@
-"""Kwon's FIR (seed 004 eqs. 5–13): the literal formula, equality with OUFIR (gain and run), seed 004's
+"""Kwon's FIR ([Mo-FIR] eqs. 5–13): the literal formula, equality with OUFIR (gain and run), [Mo-FIR]'s
 sampling-time-error setting, the steady-state KF limit, batching, finiteness, bad input."""
 
 from __future__ import annotations

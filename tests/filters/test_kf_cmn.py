@@ -1,4 +1,4 @@
-"""KF-CMN back end (seed 000 Algorithm 1): ψ = 0 is the KF, agreement with the time-correlated form
+"""KF-CMN back end ([Shmaliy-CMN] Algorithm 1): ψ = 0 is the KF, agreement with the time-correlated form
 (filterpy ``update_correlated``) and with the notes' alternative de-correlated form, batching, bad input."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""OFIR (seed 001 Alg. 2) with the data-linear horizon-start prior: kernel form vs the literal iterative
+"""OFIR ([PaleRamon-BBox] Alg. 2) with the data-linear horizon-start prior: kernel form vs the literal iterative
 algorithm, the two OUFIR limits of the prior, the steady-state KF limit, batching, finiteness, bad input."""
 
 from __future__ import annotations

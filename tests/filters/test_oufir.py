@@ -1,4 +1,4 @@
-"""OUFIR (seed 001 Alg. 4): kernel form vs the literal iterative algorithm, unbiasedness, the steady-state KF
+"""OUFIR ([PaleRamon-BBox] Alg. 4): kernel form vs the literal iterative algorithm, unbiasedness, the steady-state KF
 limit, both numerical branches of the batch gain, batching/per-track parameters, finiteness, bad input."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""UFIR-CMN (filters/ufir_cmn.py): fast form vs literal Algorithm 2 (seed 000), ψ = 0 is UFIR, differencing
+"""UFIR-CMN (filters/ufir_cmn.py): fast form vs literal Algorithm 2 ([Shmaliy-CMN]), ψ = 0 is UFIR, differencing
 folded into the raw-window gain, unbiasedness, per-track ψ, rank-deficient windows, bad input."""
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ def test_full_window_gain_is_least_squares_on_differenced_samples() -> None:
     y = cmn_track(N + 1, psi, seed=3)
     W = UFIRCMN(MODEL1, psi=psi, horizon=N).window_gain(np.ones(N + 1, bool), {"psi": psi, "horizon": N})
     assert W.shape == (2, N + 1)
-    z = y[1:] - psi * y[:-1]  # seed 000 eq. 4
+    z = y[1:] - psi * y[:-1]  # [Shmaliy-CMN] eq. 4
     D = AXIS.H - psi * AXIS.H @ np.linalg.inv(AXIS.F)
     np.testing.assert_allclose(D, [[1 - psi, psi * TAU]])  # notes §1.3: D = [1 − ψ, ψτ]
     C = back_projected_rows(AXIS.F, D, N)  # rows D F^{−(N−1−i)}

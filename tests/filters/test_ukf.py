@@ -1,5 +1,5 @@
 """UKF back end: equals the KF on the linear model, agrees with filterpy's UnscentedKalmanFilter, the
-camera-motion model (seed 003 eq. 17) against a 3-state linear KF, batching, bad input."""
+camera-motion model ([Raj-UKF] eq. 17) against a 3-state linear KF, batching, bad input."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ def test_equals_kf_at_alpha_one(M: int) -> None:
 
 @pytest.mark.parametrize("alpha", [1e-4, 1e-3, 1.0, 1e4])
 def test_any_alpha_equals_kf_to_rounding(alpha: float) -> None:
-    """The sigma points are drawn around 0 and only carry covariances (module docstring): α = 1e-3 (seed 003's
+    """The sigma points are drawn around 0 and only carry covariances (module docstring): α = 1e-3 ([Raj-UKF]'s
     suggestion, W_0 = 1 − 1/α² ≈ −1e6) lost ~1e-9 relative to cancellation when they were drawn around x; now
     every α in range agrees with the KF to rounding (measured 1.2e-15 at 1e-3)."""
     rng = np.random.default_rng(2)
