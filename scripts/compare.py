@@ -74,11 +74,12 @@ from agents.report import by_method, summary_markdown, write_results_csv
 from agents.report_retune import retune_tables
 from agents.retune_eval import (ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
                                 evaluate_retune, window_oracle)
-from agents.run_files import RunError, write_text_atomic
+from agents.run_files import RunError
 from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env
 from agents.safe_load import check_env_match
 from agents.seeds_report import profile_curves, seeds_section
 from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
+from envs.atomic_files import write_text_atomic
 from envs.config import EnvConfig
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"

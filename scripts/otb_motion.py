@@ -21,7 +21,7 @@ from scipy.optimize import least_squares
 from scipy.signal import welch
 
 from agents.cli import ArgumentParser, existing_dir, int_range, nonnegative_int, out_dir
-from agents.run_files import write_text_atomic
+from envs.atomic_files import write_text_atomic
 from envs.otb import OTBDataset, split
 from envs.sim_motion import OTBMotion
 from envs.simulate import ScenarioRanges, simulate_each

@@ -39,10 +39,11 @@ from video_common import write_csv, write_json
 import filters
 from agents.cli import (ArgumentParser, box_xywh, existing_dir, existing_file, int_range, nonnegative_int,
                         out_dir)
-from agents.run_files import RunError, atomic_write
+from agents.run_files import RunError
 from agents.runs import check_free
 from envs import metrics
 from envs.actions import ACCEPTS
+from envs.atomic_files import atomic_write
 from envs.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from envs.config import EnvConfig
 from envs.video.camera import frame_shift, run_compensated

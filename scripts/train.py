@@ -55,11 +55,11 @@ from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, key_values,
                         positive_int, tracker_set)
 from agents.hyperparams import VEC_ENVS, Hyperparams, constructor_kwargs, load_hyperparams
 from agents.plots import learning_curve
-from agents.run_files import (PICKLED_REPLAY, REPLAY, STATS, RunError, atomic_write, load_normalizer,
-                              load_replay_buffer, save_stats, write_text_atomic)
+from agents.run_files import PICKLED_REPLAY, REPLAY, STATS, RunError, load_normalizer, load_replay_buffer, save_stats
 from agents.runs import (CONFIG, ENV_ERRORS, RESUME_KEYS, RunLock, check_free, claim_run_dir, load_config,
                          make_env, make_vec)
 from agents.safe_load import load_model, stamp
+from envs.atomic_files import atomic_write, write_text_atomic
 from envs.config import SOURCES
 from envs.otb import TRACKER_SPLIT
 

@@ -36,7 +36,7 @@ from video_common import bootstrap_ci, write_csv, write_json  # noqa: E402
 import filters  # noqa: E402
 from agents.cli import (ArgumentParser, argument_errors, nonnegative_int, out_dir, positive_float,  # noqa: E402
                         positive_int)
-from agents.run_files import atomic_write  # noqa: E402
+from envs.atomic_files import atomic_write  # noqa: E402
 from envs.config import EnvConfig  # noqa: E402
 from envs.video.camera import UKF_CAMERA, background_shift, run_compensated  # noqa: E402
 from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402

@@ -22,13 +22,13 @@ from typing import Any
 
 import numpy as np
 
-from agents.run_files import atomic_write
+from envs.atomic_files import write_text_atomic
 
 
 def write_text(path: Path, text: str) -> None:
-    """``text`` into ``path`` atomically (:func:`agents.run_files.atomic_write`), creating its folder if needed."""
+    """``text`` into ``path`` atomically (:mod:`envs.atomic_files`), creating its folder if needed."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, lambda p: p.write_text(text))
+    write_text_atomic(path, text)
 
 
 def json_text(doc: Any) -> str:
