@@ -13,7 +13,6 @@ to integers (OTB boxes are integers), at τ = 1/30 s and 500 frames.
 from __future__ import annotations
 
 import json
-import sys
 from dataclasses import asdict
 
 import numpy as np

@@ -22,7 +22,6 @@ sequences found there are scored, raw and smoothed, by scripts/otb_eval.py's sco
 
 from __future__ import annotations
 
-import sys
 import tempfile
 from pathlib import Path
 

@@ -51,7 +51,7 @@ def test_bench_filters_misuse_exits_2_with_one_line(args):
 
 
 def test_bench_train_times_both_runs(capsys, tmp_path):
-    bench_train.run(["--timesteps", "128", "--out", str(tmp_path / "run"), "--", "--hyperparams",
+    bench_train.main(["--timesteps", "128", "--out", str(tmp_path / "run"), "--", "--hyperparams",
                       "n_steps:2", "--env-kwargs", "track_length=60"])
     out = capsys.readouterr().out
     assert re.search(r"\[1\] train.py, 128 steps: [\d.]+ s wall .* peak RSS [\d.]+ GB", out), out
