@@ -9,7 +9,8 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
 from agents.checkpoints import save_checkpoint
-from agents.run_files import STATS, atomic_write, save_stats, write_text_atomic
+from agents.run_files import STATS, save_stats
+from envs.data.atomic_files import atomic_write, write_text_atomic
 
 
 class EpisodeLog(BaseCallback):

@@ -23,8 +23,9 @@ from typing import Any
 
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from agents.run_files import REPLAY, STATS, RunError, read_json, save_replay_buffer, save_stats, write_text_atomic
+from agents.run_files import REPLAY, STATS, RunError, read_json, save_replay_buffer, save_stats
 from envs.data import textfile
+from envs.data.atomic_files import write_text_atomic
 
 CHECKPOINTS = "checkpoints"
 LATEST = "latest"

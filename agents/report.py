@@ -29,8 +29,8 @@ import numpy as np
 
 from agents.records import by_method, episode_column, table
 from agents.report_otb import attribute_tables, auc_table, tracker_table
-from agents.run_files import write_text_atomic
 from agents.stats import STATS, Resamples, ci, cluster_bootstrap_indices, fmt_ci, n_clusters, win_rate
+from envs.data.atomic_files import write_text_atomic
 
 FIRST_COLUMNS = ("method", "episode", "sequence", "tracker", "rmse", "success_auc", "precision20", "backend", "source",
                  "noise_seed", "rule_rmse", "log_ratio", "iou_mean", "iou_precision")

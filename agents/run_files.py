@@ -19,9 +19,7 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import zipfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +29,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents import cli
 from envs.data import textfile
+from envs.data.atomic_files import atomic_write_file, write_text_atomic
 
 STATS_FORMAT = "bboxtune-vecnormalize-1"
 STATS = "vecnormalize.json"
@@ -42,22 +41,6 @@ _REPLAY_ARRAYS = ("observations", "next_observations", "actions", "rewards", "do
 
 class RunError(ValueError):
     """A run directory, one of its files or a setting given for it is unusable; the message names the file."""
-
-
-def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """``write(tmp)`` to a temporary file beside ``path`` (same folder and suffix: writers such as SB3's ``save``
-    append ``.zip`` to other names), then ``os.replace`` it onto ``path``."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def write_text_atomic(path: Path, text: str) -> None:
-    atomic_write(path, lambda p: p.write_text(text))
 
 
 def read_json(path: Path) -> Any:
@@ -78,7 +61,7 @@ def save_stats(venv: VecNormalize, path: Path) -> None:
            "epsilon": float(venv.epsilon),
            "obs_rms": {"mean": obs.mean.tolist(), "var": obs.var.tolist(), "count": float(obs.count)},
            "ret_rms": {"mean": float(ret.mean), "var": float(ret.var), "count": float(ret.count)}}
-    atomic_write(Path(path), lambda p: p.write_text(json.dumps(doc, indent=1) + "\n"))
+    write_text_atomic(path, json.dumps(doc, indent=1) + "\n")
 
 
 def _number(doc: dict[str, Any], key: str, path: Path, low: float = -math.inf) -> float:
@@ -158,11 +141,7 @@ def save_replay_buffer(model: BaseAlgorithm, path: Path) -> None:
     rb = model.replay_buffer
     arrays = {k: getattr(rb, k) for k in _REPLAY_ARRAYS if getattr(rb, k, None) is not None}
 
-    def write(tmp: Path) -> None:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, pos=np.int64(rb.pos), full=np.bool_(rb.full), **arrays)
-
-    atomic_write(Path(path), write)
+    atomic_write_file(path, lambda fh: np.savez(fh, pos=np.int64(rb.pos), full=np.bool_(rb.full), **arrays))
 
 
 def load_replay_buffer(model: BaseAlgorithm, path: Path) -> None:

@@ -45,11 +45,17 @@ STATS: dict[str, Stat] = {
 }
 
 
-def bootstrap_indices(n: int, n_boot: int, seed: int) -> np.ndarray:
-    """(n_boot, n) episode indices drawn with replacement (the same draws for every method: paired)."""
+def resample_indices(n: int, n_boot: int, rng: np.random.Generator) -> np.ndarray:
+    """(n_boot, n) indices drawn with replacement from ``rng``: ``rng.integers(n, size=(n_boot, n))``."""
     if n < 1 or n_boot < 1:
         raise ValueError(f"n={n}, n_boot={n_boot}; allowed: both >= 1")
-    return np.random.default_rng(seed).integers(n, size=(n_boot, n))
+    return rng.integers(n, size=(n_boot, n))
+
+
+def bootstrap_indices(n: int, n_boot: int, seed: int) -> np.ndarray:
+    """(n_boot, n) episode indices drawn with replacement (the same draws for every method: paired):
+    :func:`resample_indices` from ``default_rng(seed)``."""
+    return resample_indices(n, n_boot, np.random.default_rng(seed))
 
 
 def cluster_bootstrap_indices(clusters: Sequence[Hashable], n_boot: int, seed: int) -> Resamples:
@@ -99,6 +105,16 @@ def ci(x: np.ndarray, stat: Stat, idx: Resamples, level: float = 0.95) -> tuple[
     alpha = (1.0 - level) / 2.0
     lo, hi = np.quantile(boots, [alpha, 1.0 - alpha])
     return float(stat(x[None])[0]), float(lo), float(hi)
+
+
+def paired_mean_ci(diff: np.ndarray, rng: np.random.Generator, n_boot: int = 2000) -> tuple[float, float]:
+    """95 % percentile-bootstrap interval (``np.percentile`` at 2.5 and 97.5) of the mean of the paired
+    differences ``diff`` (n,), over :func:`resample_indices` drawn from ``rng``. ``rng`` advances, so successive
+    calls with one generator (the video tables: one per run, seeded by ``--seed``) draw successive resamples."""
+    diff = np.asarray(diff, dtype=float)
+    means = STATS["mean"](diff[resample_indices(len(diff), n_boot, rng)])
+    lo, hi = np.percentile(means, [2.5, 97.5])
+    return float(lo), float(hi)
 
 
 def fmt_ci(est: float, lo: float, hi: float, digits: int = 3, signed: bool = False) -> str:

@@ -34,7 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.run_files import RunError, write_text_atomic
+from agents.run_files import RunError
+from envs.data.atomic_files import write_text_atomic
 
 REPO = Path(__file__).resolve().parents[1]
 METRICS = ("val_log_ratio", "val_gap_closed", "val_win_rate")

@@ -3,46 +3,10 @@
 
     python scripts/bench_video.py [--videos 5] [--frames 200]
 
-Prints rates only (speed is never asserted by the tests). Run on an idle machine for meaningful numbers.
+The command is :func:`agents.commands.bench_video.main`; ``--help`` describes every flag.
 """
 
-from __future__ import annotations
-
-import time
-
-import numpy as np
-
-from agents.cli import ArgumentParser, argument_errors, positive_int
-from envs.video.camera import background_shift
-from envs.video.detectors import DETECTORS, detect_video, make_detector
-from envs.video.synthetic import VideoRanges, synthetic_video
-
-
-def main(argv: list[str] | None = None) -> int:
-    p = ArgumentParser(prog="bench_video.py", description=__doc__.split("\n\n")[0])
-    p.add_argument("--videos", type=positive_int, default=5, help="synthetic videos (default 5)")
-    p.add_argument("--frames", type=positive_int, default=200, help="frames per video (default 200)")
-    args = p.parse_args(argv)
-    ranges = VideoRanges(n_frames=args.frames)
-    with argument_errors(p, "--frames"):
-        ranges.sample(np.random.default_rng(0))  # the scenario's own checks (frame count), before any work
-    start = time.perf_counter()
-    videos = [list(synthetic_video(2_000_000 + i, ranges)) for i in range(args.videos)]
-    render = (time.perf_counter() - start) / args.videos
-    print(f"render: {render:.2f} s per {args.frames}-frame 320x240 video ({args.frames / render:.0f} frames/s)")
-    truth = [synthetic_video(2_000_000 + i, ranges).boxes[0] for i in range(args.videos)]
-    for name in DETECTORS:
-        start = time.perf_counter()
-        for frames, box in zip(videos, truth):
-            detect_video(make_detector(name), frames, box)
-        rate = args.videos * args.frames / (time.perf_counter() - start)
-        print(f"{name:9s} {rate:7.0f} frames/s")
-    start = time.perf_counter()
-    for frames in videos:
-        background_shift(frames)
-    print(f"camera shift estimate {args.videos * args.frames / (time.perf_counter() - start):7.0f} frames/s")
-    return 0
-
+from agents.commands.bench_video import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -15,10 +15,12 @@ PACKAGES = ("filters", "envs", "agents")
 # the layers, lowest first: a module imports only modules of its own layer or a lower one
 LAYERS = (("filters",), ("envs.data",), ("envs.video",), ("envs.episodes",),
           ("envs", "envs.track_env", "envs.tune_env", "envs.retune_env", "envs.vector", "envs.render"), ("agents",))
-# imports inside functions that stay, with the reason: an optional extra, or torch / SB3 deferred until a model
-# is loaded (agents.tune is imported by every ``import agents``; importing torch there costs seconds)
-DEFERRED = {("agents.sweep", "ray"), ("agents.tune", "stable_baselines3"), ("agents.tune", "agents.runs"),
-            ("agents.tune", "agents.run_files")}
+# imports inside functions that stay, with the reason: an optional extra (ray, tensorboard; filterpy of the test
+# extra), or torch / SB3 deferred until a model is loaded (agents.tune is imported by every ``import agents``;
+# importing torch there costs seconds)
+DEFERRED = {("agents.sweep", "ray"), ("agents.commands.sweep", "ray"), ("agents.commands.train", "tensorboard"),
+            ("agents.commands.bench_filters", "filterpy"), ("agents.tune", "stable_baselines3"),
+            ("agents.tune", "agents.runs"), ("agents.tune", "agents.run_files")}
 NO_GYMNASIUM = ("filters", "envs.data", "envs.video", "envs.episodes")
 
 

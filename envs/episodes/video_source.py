@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from envs.data.atomic_files import atomic_write
 from envs.episodes.actions import Nominal
 from envs.data.boxes import xywh_to_cxcywh
 from envs.episodes.features import box_scale
@@ -111,9 +112,7 @@ def detected_video(seed: int, detector: str, n_frames: int, size: tuple[int, int
         result = {"truth": video.boxes, "y": y, "tau": np.float64(video.tau), "camera": video.camera}
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
-            np.savez(tmp, **result)
-            os.replace(tmp, path)
+            atomic_write(path, lambda tmp: np.savez(tmp, **result))
     _MEMORY[key] = result
     return result
 

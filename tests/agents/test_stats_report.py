@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from agents.report import FIRST_COLUMNS, by_method, clusters, resampling_note, summary_markdown, write_results_csv
-from agents.stats import STATS, bootstrap_indices, ci, cluster_bootstrap_indices, iqm, win_rate
+from agents.stats import STATS, bootstrap_indices, ci, cluster_bootstrap_indices, iqm, paired_mean_ci, win_rate
 
 
 def test_iqm_ignores_the_tails() -> None:
@@ -27,6 +27,17 @@ def test_paired_series_are_resampled_together() -> None:
     a = np.random.default_rng(0).normal(size=200)
     est, lo, hi = ci(np.stack([a, a + 0.5]), lambda x: (x[..., 1, :] - x[..., 0, :]).mean(-1), bootstrap_indices(200, 300, 0))
     assert est == lo == hi == 0.5  # a paired difference that is constant has no sampling spread
+
+
+def test_paired_mean_ci_draws_from_the_given_generator_in_turn() -> None:
+    """The video tables' interval: successive calls on one generator take successive draws, and the numbers are
+    those of the resampling written out (rng.integers(0, n, (reps, n)), then the 2.5 / 97.5 percentiles)."""
+    diffs = [np.array([0.1, -0.2, 0.3, 0.05, 0.0]), np.array([1.0, 2.0, 4.0])]
+    rng, reference = np.random.default_rng(7), np.random.default_rng(7)
+    for diff in diffs:
+        means = diff[reference.integers(0, len(diff), (2000, len(diff)))].mean(axis=1)
+        assert paired_mean_ci(diff, rng) == tuple(float(v) for v in np.percentile(means, [2.5, 97.5]))
+    assert bootstrap_indices(5, 3, seed=7).tolist() == np.random.default_rng(7).integers(5, size=(3, 5)).tolist()
 
 
 def test_win_rate_counts_ties_half() -> None:

@@ -9,12 +9,14 @@ import sys
 
 import pytest
 
-from .tiny_run import REPO, load_script
+from agents.commands import bench_env, bench_filters, bench_train
+
+from .tiny_run import REPO
 
 
 def test_bench_env_prints_its_four_rates(capsys):
-    load_script("bench_env").main(["--episodes", "4", "--calls", "1", "--candidates", "3", "--repeat", "2",
-                                   "--track-length", "60", "--n-envs", "4", "--vec-steps", "2", "--filterpy-tracks", "1"])
+    bench_env.main(["--episodes", "4", "--calls", "1", "--candidates", "3", "--repeat", "2",
+                    "--track-length", "60", "--n-envs", "4", "--vec-steps", "2", "--filterpy-tracks", "1"])
     out = capsys.readouterr().out
     for label in ("[1] gym.make + reset + step", "[2] batched score()", "[3] the filter alone", "[4] batched vec env"):
         line = next(l for l in out.splitlines() if l.startswith(label))
@@ -22,9 +24,9 @@ def test_bench_env_prints_its_four_rates(capsys):
 
 
 def test_bench_filters_prints_every_section(capsys):
-    load_script("bench_filters").main(["--tracks", "6", "--frames", "60", "--repeat", "1", "--iter-tracks", "1",
-                                       "--horizon", "20", "--wide-tracks", "12", "--wide-frames", "40",
-                                       "--wide-horizon", "10", "--long-frames", "300", "--backends", "kf", "ofir"])
+    bench_filters.main(["--tracks", "6", "--frames", "60", "--repeat", "1", "--iter-tracks", "1",
+                        "--horizon", "20", "--wide-tracks", "12", "--wide-frames", "40",
+                        "--wide-horizon", "10", "--long-frames", "300", "--backends", "kf", "ofir"])
     out = capsys.readouterr().out
     assert re.search(r"\[1\] kf batched: [\d,]+ frame-updates/s.*ratio [\d,]+x", out)
     assert re.search(r"\[2\] ufir N=20 kernel: [\d,]+ points/s", out)
@@ -49,8 +51,8 @@ def test_bench_filters_misuse_exits_2_with_one_line(args):
 
 
 def test_bench_train_times_both_runs(capsys, tmp_path):
-    load_script("bench_train").main(["--timesteps", "128", "--out", str(tmp_path / "run"), "--", "--hyperparams",
-                                     "n_steps:2", "--env-kwargs", "track_length=60"])
+    bench_train.main(["--timesteps", "128", "--out", str(tmp_path / "run"), "--", "--hyperparams",
+                      "n_steps:2", "--env-kwargs", "track_length=60"])
     out = capsys.readouterr().out
     assert re.search(r"\[1\] train.py, 128 steps: [\d.]+ s wall .* peak RSS [\d.]+ GB", out), out
     assert re.search(r"\[2\] SB3 PPO on CartPole-v1, 128 steps: [\d.]+ s wall", out), out

@@ -77,29 +77,23 @@ CASES: dict[str, list] = {
     ],
 }
 PARAMS = [pytest.param(name, case, id=f"{name}: {case}") for name, cases in CASES.items() for case in cases]
-HELP = sorted(p.stem for p in SCRIPTS.glob("*.py") if "\ndef main(" in p.read_text())
+HELP = sorted(p.stem for p in SCRIPTS.glob("*.py"))  # every script is a command: agents.commands.<name>
 
 
-@pytest.fixture
-def scripts(monkeypatch: pytest.MonkeyPatch):
-    """Import a script by name (scripts/ on sys.path: the reproduction modules import each other)."""
-    monkeypatch.syspath_prepend(str(SCRIPTS))
-
-    def load(name: str) -> ModuleType:
-        return importlib.import_module(name)
-
-    return load
+def command(name: str) -> ModuleType:
+    """The command module of ``scripts/<name>.py``."""
+    return importlib.import_module(f"agents.commands.{name}")
 
 
 @pytest.mark.parametrize(("name", "case"), PARAMS)
-def test_misuse_exits_2_with_one_line_and_writes_nothing(name, case, scripts, misuse_paths, capsys, monkeypatch):
-    check_misuse(scripts(name).main, case, misuse_paths, capsys, monkeypatch)
+def test_misuse_exits_2_with_one_line_and_writes_nothing(name, case, misuse_paths, capsys, monkeypatch):
+    check_misuse(command(name).main, case, misuse_paths, capsys, monkeypatch)
 
 
 @pytest.mark.parametrize("name", HELP)
-def test_help_prints_usage_and_exits_0(name, scripts, capsys):
+def test_help_prints_usage_and_exits_0(name, capsys):
     with pytest.raises(SystemExit) as info:
-        scripts(name).main(["--help"])
+        command(name).main(["--help"])
     out = capsys.readouterr().out
     assert info.value.code == 0
     assert out.startswith("usage: ") and "--help" in out  # in-process, prog is the script name only if it sets prog=

@@ -7,6 +7,7 @@ below the steps done, are tested in ``test_train.py``."""
 
 from __future__ import annotations
 
+import importlib
 import shutil
 from pathlib import Path
 
@@ -14,7 +15,7 @@ import pytest
 import yaml
 
 from .cli_misuse import MisusePaths, check_misuse, misuse, misuse_paths, run_script  # noqa: F401  (fixture)
-from .tiny_run import load_script, tiny_run, train  # noqa: F401  (fixtures)
+from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
 
 COUNT = ("0", "-1", "abc", "1_0", "2.5")  # not integers >= 1 ("1_0" is 10 to int())
 
@@ -103,7 +104,7 @@ def run_paths(misuse_paths: MisusePaths, tiny_run: Path) -> MisusePaths:
 
 @pytest.mark.parametrize(("name", "case"), PARAMS)
 def test_misuse_exits_2_with_one_line_and_writes_nothing(name, case, run_paths, capsys, monkeypatch):
-    check_misuse(load_script(name).main, case, run_paths, capsys, monkeypatch)
+    check_misuse(importlib.import_module(f"agents.commands.{name}").main, case, run_paths, capsys, monkeypatch)
 
 
 def test_misuse_from_the_command_line(misuse_paths: MisusePaths) -> None:

@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from agents.commands import compare as compare_command
 from agents.splits import eval_seeds, split_of, split_seeds
 
-from .tiny_run import load_script, tiny_run, train  # noqa: F401  (fixtures)
+from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
 
 REQUIRED = ("method", "episode", "sequence", "tracker", "rmse", "success_auc", "precision20")
 METHODS = {"raw", "rule", "rule_est_sigma", "rule_true_sigma", "oracle", "oracle_auc", "global", "amortised", "adaptive",
@@ -24,7 +25,7 @@ needs_otb = pytest.mark.skipif(not OTB or not Path(OTB).is_dir(), reason="needs 
 
 
 def compare(run: Path, out: Path, *args: str) -> Path:
-    return load_script("compare").main(["--model", str(run), *FAST, "--out", str(out), *args])
+    return compare_command.run(["--model", str(run), *FAST, "--out", str(out), *args])
 
 
 def rows(out: Path) -> list[dict[str, str]]:
@@ -155,9 +156,8 @@ def test_mix_episodes_are_drawn_and_cluster_by_sequence_where_they_have_one(tiny
 def test_several_seeds_are_scored_together_and_aggregated(tiny_run: Path, train, tmp_path: Path, capsys) -> None:  # noqa: F811
     from .tiny_run import TINY
 
-    second = train.main([*TINY, "--seed", "1", "--out", str(tmp_path / "s1")])
-    main = load_script("compare").main
-    out = main(["--model", str(tiny_run), str(second), *FAST, "--episodes", "4", "--out", str(tmp_path / "both")])
+    second = train.run([*TINY, "--seed", "1", "--out", str(tmp_path / "s1")])
+    out = compare_command.run(["--model", str(tiny_run), str(second), *FAST, "--episodes", "4", "--out", str(tmp_path / "both")])
     table = rows(out)
     assert {"ppo_s0", "ppo_s1", "ppo_best_s0", "ppo_best_s1", "rule", "oracle"} <= {r["method"] for r in table}
     assert of(table, "ppo_s0", "episode") == of(table, "ppo_s1", "episode") == ["0", "1", "2", "3"]  # the same episodes
@@ -169,5 +169,5 @@ def test_several_seeds_are_scored_together_and_aggregated(tiny_run: Path, train,
                         (["--model", str(tiny_run), str(tiny_run), "--out", str(tmp_path / "x")], "seed 0 again")):
         capsys.readouterr()
         with pytest.raises(SystemExit) as exit_info:
-            main(argv)
+            compare_command.main(argv)
         assert exit_info.value.code == 2 and match in capsys.readouterr().err

@@ -10,8 +10,10 @@ from pathlib import Path
 
 import pytest
 
+from agents.commands import compare
+
 from .cli_misuse import MisusePaths, check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
-from .tiny_run import load_script, tiny_run, train  # noqa: F401  (fixtures)
+from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
 
 OTB = os.environ.get("OTB_ROOT", "")
 WITH_OTB = {"OTB_ROOT": OTB}
@@ -66,10 +68,10 @@ def run_paths(misuse_paths: MisusePaths, tiny_run: Path) -> MisusePaths:
 
 @pytest.mark.parametrize("case", CASES, ids=str)
 def test_misuse_exits_2_with_one_line_and_writes_nothing(case, run_paths, capsys, monkeypatch) -> None:
-    check_misuse(load_script("compare").main, case, run_paths, capsys, monkeypatch)
+    check_misuse(compare.main, case, run_paths, capsys, monkeypatch)
 
 
 @pytest.mark.skipif(not OTB or not Path(OTB).is_dir(), reason="needs the OTB data ($OTB_ROOT)")
 @pytest.mark.parametrize("case", OTB_CASES, ids=str)
 def test_otb_misuse_exits_2_with_one_line_and_writes_nothing(case, run_paths, capsys, monkeypatch) -> None:
-    check_misuse(load_script("compare").main, case, run_paths, capsys, monkeypatch)
+    check_misuse(compare.main, case, run_paths, capsys, monkeypatch)

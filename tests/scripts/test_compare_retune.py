@@ -8,7 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from .tiny_run import TINY, load_script, tiny_run, train  # noqa: F401  (fixtures)
+from agents.commands import compare
+
+from .tiny_run import TINY, tiny_run, train  # noqa: F401  (fixtures)
 
 METHODS = {"raw", "rule", "oneshot_oracle", "oneshot_learned", "oneshot_learned_online", "window_oracle", "adaptive", "imm", "ppo",
            "ppo_best"}
@@ -24,15 +26,15 @@ def _tiny(*extra: str) -> list[str]:
 @pytest.fixture(scope="module")
 def runs(train, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:  # noqa: F811
     root = tmp_path_factory.mktemp("retune_runs")
-    retune = train.main([*_tiny("--env", "bboxtune/FilterRetune-v0", "--env-kwargs", "window:40"), "--out", str(root / "rt")])
-    oneshot = train.main([*_tiny(), "--out", str(root / "os")])
+    retune = train.run([*_tiny("--env", "bboxtune/FilterRetune-v0", "--env-kwargs", "window:40"), "--out", str(root / "rt")])
+    oneshot = train.run([*_tiny(), "--out", str(root / "os")])
     return retune, oneshot
 
 
 def test_compare_scores_a_retune_run_against_every_baseline(runs: tuple[Path, Path], tmp_path: Path) -> None:
     retune, oneshot = runs
-    out = load_script("compare").main(["--model", str(retune), "--oneshot-model", str(oneshot), "--episodes",
-                                       str(EPISODES), "--oracle-budget", "16", "--bootstrap", "50", "--out", str(tmp_path / "c")])
+    out = compare.run(["--model", str(retune), "--oneshot-model", str(oneshot), "--episodes",
+                       str(EPISODES), "--oracle-budget", "16", "--bootstrap", "50", "--out", str(tmp_path / "c")])
     with open(out / "results.csv") as fh:
         table = list(csv.DictReader(fh))
     assert {r["method"] for r in table} == METHODS and len(table) == len(METHODS) * EPISODES
@@ -50,6 +52,6 @@ def test_oneshot_model_must_be_a_one_step_run(runs: tuple[Path, Path], tmp_path:
                                               capsys: pytest.CaptureFixture[str]) -> None:
     retune, _ = runs
     with pytest.raises(SystemExit) as exc:
-        load_script("compare").main(["--model", str(retune), "--oneshot-model", str(retune), "--out", str(tmp_path / "c")])
+        compare.run(["--model", str(retune), "--oneshot-model", str(retune), "--out", str(tmp_path / "c")])
     assert exc.value.code == 2
     assert "--oneshot-model" in capsys.readouterr().err and not (tmp_path / "c").exists()

@@ -1,6 +1,5 @@
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -10,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from agents.commands import otb_eval
 from envs.data.metrics import score_sequences
 from envs.data.otb import OTBDataset
 
@@ -27,13 +27,6 @@ PUBLISHED_AUC = {
 }
 
 
-def load_script():
-    spec = importlib.util.spec_from_file_location("otb_eval", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def write_fixture(root: Path, tracker_line2: str = "2,2,10,10") -> Path:
     (root / "groundtruth").mkdir(parents=True)
     (root / "groundtruth" / "A.txt").write_text("1,1,10,10\n2,2,10,10\n")
@@ -46,7 +39,7 @@ def write_fixture(root: Path, tracker_line2: str = "2,2,10,10") -> Path:
 
 def test_json_output_on_a_fixture(tmp_path, capsys):
     root = write_fixture(tmp_path)
-    assert load_script().main(["--otb-root", str(root), "--json"]) == 0
+    assert otb_eval.main(["--otb-root", str(root), "--json"]) == 0
     table = json.loads(capsys.readouterr().out)
     assert set(table) == {"T"} and table["T"]["n_sequences"] == 2
     assert table["T"]["success_auc"] == pytest.approx(20 / 21)  # perfect on every annotated frame
@@ -77,7 +70,7 @@ MISUSES = [
 
 @pytest.mark.parametrize("case", MISUSES, ids=str)
 def test_misuse(case, misuse_paths, capsys):
-    check_misuse(load_script().main, case, misuse_paths, capsys)
+    check_misuse(otb_eval.main, case, misuse_paths, capsys)
 
 
 @pytest.mark.parametrize("args, mentions", [
@@ -87,12 +80,12 @@ def test_misuse(case, misuse_paths, capsys):
 ])
 def test_misuse_with_data(args, mentions, misuse_paths, capsys):
     root = write_fixture(misuse_paths.root / "otb")
-    check_misuse(load_script().main, misuse("--otb-root", str(root), *args, mentions=mentions), misuse_paths, capsys)
+    check_misuse(otb_eval.main, misuse("--otb-root", str(root), *args, mentions=mentions), misuse_paths, capsys)
 
 
 @needs_otb
 def test_reproduces_published_otb100_success_auc(capsys):
-    assert load_script().main(["--otb-root", OTB_ROOT, "--json"]) == 0
+    assert otb_eval.main(["--otb-root", OTB_ROOT, "--json"]) == 0
     table = json.loads(capsys.readouterr().out)
     assert set(table) == set(PUBLISHED_AUC)
     for tracker, auc in PUBLISHED_AUC.items():

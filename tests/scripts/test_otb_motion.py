@@ -8,9 +8,9 @@ from dataclasses import asdict
 
 import pytest
 
+from agents.commands import otb_motion
 from envs.data.sim_motion import OTB_MOTION
 
-from .tiny_run import load_script
 
 OTB_ROOT = os.environ.get("OTB_ROOT")
 needs_otb = pytest.mark.skipif(not OTB_ROOT, reason="OTB_ROOT is unset (CI: OTB_ROOT=../shared/data/otb)")
@@ -18,7 +18,7 @@ needs_otb = pytest.mark.skipif(not OTB_ROOT, reason="OTB_ROOT is unset (CI: OTB_
 
 def test_fit_recovers_the_simulated_model():
     """Fitting 300 integer-rounded "otb" tracks (fixed seeds) gives back the parameters they were drawn with."""
-    script = load_script("otb_motion")
+    script = otb_motion
     fitted, extra = script.fit(script.simulated("otb", 300, seed=1000))
     assert fitted.switch_rate == pytest.approx(OTB_MOTION.switch_rate, rel=0.35)
     assert fitted.cruise_share == pytest.approx(OTB_MOTION.cruise_share, abs=0.12)
@@ -33,7 +33,7 @@ def test_fit_recovers_the_simulated_model():
 
 @needs_otb
 def test_script_on_otb_reproduces_the_shipped_constants(tmp_path):
-    assert load_script("otb_motion").main(["--otb-root", OTB_ROOT, "--out", str(tmp_path), "--tracks", "40"]) == 0
+    assert otb_motion.main(["--otb-root", OTB_ROOT, "--out", str(tmp_path), "--tracks", "40"]) == 0
     result = json.loads((tmp_path / "otb_motion.json").read_text())
     for name, value in asdict(OTB_MOTION).items():  # the constants are the fit, rounded to 3 digits
         assert result["fitted"][name] == pytest.approx(value, rel=5e-3), name
@@ -44,9 +44,9 @@ def test_script_on_otb_reproduces_the_shipped_constants(tmp_path):
 def test_bad_arguments_exit_2(tmp_path, capsys):
     """More misuse cases: tests/scripts/test_cli_misuse.py."""
     with pytest.raises(SystemExit) as err:
-        load_script("otb_motion").main(["--out", str(tmp_path), "--tracks", "0"])
+        otb_motion.main(["--out", str(tmp_path), "--tracks", "0"])
     assert err.value.code == 2 and "--tracks" in capsys.readouterr().err
     with pytest.raises(SystemExit) as err:
-        load_script("otb_motion").main(["--otb-root", str(tmp_path / "missing"), "--out", str(tmp_path)])
+        otb_motion.main(["--otb-root", str(tmp_path / "missing"), "--out", str(tmp_path)])
     assert err.value.code == 2 and "--otb-root" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
+from agents.commands import compare
 from agents.runs import SB3Policy, load_config, make_env
 
-from .tiny_run import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 BACKENDS = ("ufir_cmn", "kf_cmn")
@@ -65,7 +65,7 @@ def _readme_rows(backend: str) -> list[tuple[str, list[str]]]:
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_readme_rows_are_reproduced_from_the_committed_run(backend: str, tmp_path: Path) -> None:
     out = tmp_path / "compare"
-    load_script("compare").main(["--model", str(run_dir(backend)), "--episodes", "500", "--out", str(out)])
+    compare.run(["--model", str(run_dir(backend)), "--episodes", "500", "--out", str(out)])
     summary = (out / "summary.md").read_text()
     assert _tables(summary) == _tables((ROOT / "docs" / "results" / backend / "summary.md").read_text())
     rows = [(line.split("|")[1].strip(), line) for line in _tables(summary)]

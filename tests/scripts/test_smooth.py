@@ -11,15 +11,14 @@ import numpy as np
 import pytest
 
 from agents import pretrained
+from agents.commands import otb_eval, smooth as smooth_script
 from agents.tune import load_pretrained
 from envs.data.otb import OTBDataset
 from envs.data.otb_io import read_boxes
 
 from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
-from .tiny_run import REPO, load_script
+from .tiny_run import REPO
 
-smooth_script = load_script("smooth")
-otb_eval = load_script("otb_eval")
 TAU = "0.04"
 
 

@@ -7,10 +7,9 @@ from pathlib import Path
 
 import pytest
 
+from agents.commands import sweep as sweep_command
 from agents.run_files import RunError
 from agents.sweep import SweepSpec, aggregate, trial_commands, write_csv
-
-from .tiny_run import load_script
 
 
 def test_the_grid_is_the_product_of_its_axes() -> None:
@@ -51,7 +50,7 @@ def test_the_aggregate_groups_seeds_of_one_setting(tmp_path: Path) -> None:
 
 
 def test_smoke_sweep_runs_two_trials_and_aggregates_them(tmp_path: Path, capsys) -> None:
-    out = load_script("sweep").main(["--out", str(tmp_path / "sweep"), "--smoke", "--cpus", "2"])
+    out = sweep_command.run(["--out", str(tmp_path / "sweep"), "--smoke", "--cpus", "2"])
     for seed in (0, 1):
         trial = out / "trials" / f"ppo_ufir_cmn_sim_s{seed}"
         assert (trial / "run" / "model.zip").is_file() and (trial / "compare" / "summary.md").is_file()
@@ -61,6 +60,6 @@ def test_smoke_sweep_runs_two_trials_and_aggregates_them(tmp_path: Path, capsys)
         (row,) = list(csv.DictReader(fh))
     assert row["seeds"] == "0 1" and float(row["val_win_rate_min"]) >= 0
     assert "1 setting(s)" in capsys.readouterr().out
-    again = load_script("sweep").main(["--out", str(out), "--smoke", "--resume", "--cpus", "2"])  # nothing left to run
+    again = sweep_command.run(["--out", str(out), "--smoke", "--resume", "--cpus", "2"])  # nothing left to run
     assert (again / "trials" / "ppo_ufir_cmn_sim_s0" / "trial.csv").stat().st_mtime == \
         (out / "trials" / "ppo_ufir_cmn_sim_s0" / "trial.csv").stat().st_mtime

@@ -67,7 +67,7 @@ def test_run_directory(tiny_run: Path) -> None:
 
 def test_refuses_to_overwrite_a_run(train: ModuleType, tiny_run: Path, capsys: pytest.CaptureFixture) -> None:
     before = {p: p.stat().st_mtime_ns for p in tiny_run.rglob("*")}
-    assert "exists and is not empty" in error_line(lambda: train.main([*TINY, "--out", str(tiny_run)]), capsys)
+    assert "exists and is not empty" in error_line(lambda: train.run([*TINY, "--out", str(tiny_run)]), capsys)
     assert {p: p.stat().st_mtime_ns for p in tiny_run.rglob("*")} == before
 
 
@@ -81,7 +81,7 @@ def test_resume_after_a_kill_loses_nothing(train: ModuleType, tiny_run: Path, tm
     shutil.rmtree(run / CHECKPOINTS / "ckpt_000000000064")
     (run / CHECKPOINTS / LATEST).write_text("ckpt_000000000032")
     config = (run / "config.yml").read_bytes()
-    train.main(["--resume", str(run)])
+    train.run(["--resume", str(run)])
     assert "seed: 0" in capsys.readouterr().out
     assert steps(run) == 64
     steps_logged = [int(line.split(",")[0]) for line in (run / "train_log.csv").read_text().splitlines()[1:]]
@@ -89,16 +89,16 @@ def test_resume_after_a_kill_loses_nothing(train: ModuleType, tiny_run: Path, tm
     evals = np.load(run / "evaluations.npz")["timesteps"]
     assert list(evals) == sorted(set(evals)) and evals[-1] == 64
     assert (run / "command.txt").read_text().count("\n") == 2
-    train.main(["--resume", str(run), "--timesteps", "96"])  # --timesteps is the total: on to 96
+    train.run(["--resume", str(run), "--timesteps", "96"])  # --timesteps is the total: on to 96
     assert steps(run) == 96
     assert json.loads((run / CHECKPOINTS / "ckpt_000000000096" / "state.json").read_text())["total_timesteps"] == 96
-    train.main(["--resume", str(run)])  # the target is kept: nothing to do, nothing rewound
+    train.run(["--resume", str(run)])  # the target is kept: nothing to do, nothing rewound
     assert "already trained for 96 >= 96" in capsys.readouterr().out and steps(run) == 96
     assert (run / "config.yml").read_bytes() == config  # a resume never rewrites config.yml
-    line = error_line(lambda: train.main(["--resume", str(run), "--timesteps", "80"]), capsys)
+    line = error_line(lambda: train.run(["--resume", str(run), "--timesteps", "80"]), capsys)
     assert "--timesteps 80 is below the 96 timesteps" in line
     assert "cannot be given with --resume" in error_line(
-        lambda: train.main(["--resume", str(run), "--backend", "kf", "--timesteps", "128"]), capsys)
+        lambda: train.run(["--resume", str(run), "--backend", "kf", "--timesteps", "128"]), capsys)
     assert steps(run) == 96 and (run / "config.yml").read_bytes() == config
 
 
@@ -114,7 +114,7 @@ def test_resume_skips_a_corrupt_checkpoint_naming_the_file(corrupt, named: str, 
     shutil.copytree(tiny_run, run)
     corrupt(run / CHECKPOINTS / "ckpt_000000000064")
     (run / CHECKPOINTS / LATEST).write_bytes(b"\x00garbage/../../x")
-    train.main(["--resume", str(run)])
+    train.run(["--resume", str(run)])
     out = capsys.readouterr().out
     assert f"skipping checkpoint ckpt_000000000064: {run / CHECKPOINTS / 'ckpt_000000000064'}" in out and named in out
     assert f"{run / CHECKPOINTS / LATEST}: " in out and f"resuming from {run / CHECKPOINTS / 'ckpt_000000000032'}" in out
@@ -127,13 +127,13 @@ def test_resume_with_no_complete_checkpoint_fails_naming_it(train: ModuleType, t
     shutil.copytree(tiny_run, run)
     for ckpt in (run / CHECKPOINTS).glob("ckpt_*"):
         (ckpt / "model.zip").write_bytes(b"PK\x03\x04 truncated")
-    line = error_line(lambda: train.main(["--resume", str(run)]), capsys)
+    line = error_line(lambda: train.run(["--resume", str(run)]), capsys)
     assert "no complete checkpoint" in line and "model.zip: not a readable zip archive" in line
 
 
 def test_off_policy_resume_restores_the_replay_buffer(train: ModuleType, tmp_path: Path) -> None:
     run = tmp_path / "sac"
-    train.main(["--algo", "sac", "--timesteps", "48", "--hyperparams", "learning_starts:16", "buffer_size:256",
+    train.run(["--algo", "sac", "--timesteps", "48", "--hyperparams", "learning_starts:16", "buffer_size:256",
                 "batch_size:16", "--env-kwargs", "track_length:100", "--eval-freq", "24", "--eval-episodes", "2",
                 "--checkpoint-freq", "24", "--out", str(run)])
     first, last = (run / CHECKPOINTS / f"ckpt_0000000000{n}" for n in (24, 48))
@@ -141,7 +141,7 @@ def test_off_policy_resume_restores_the_replay_buffer(train: ModuleType, tmp_pat
         head = early["observations"][:24].copy()
         assert int(early["pos"]) == 24
     shutil.rmtree(last)  # as if killed before the second checkpoint
-    train.main(["--resume", str(run)])
+    train.run(["--resume", str(run)])
     with np.load(last / "replay_buffer.npz") as data:
         assert int(data["pos"]) == 48 and np.array_equal(data["observations"][:24], head)
         assert np.all(np.any(data["observations"][24:48] != 0, axis=-1))
@@ -154,7 +154,7 @@ def test_a_run_stopped_before_its_first_checkpoint_resumes_from_zero(train: Modu
     shutil.copytree(tiny_run, run)
     shutil.rmtree(run / CHECKPOINTS)
     (run / "model.zip").unlink()
-    train.main(["--resume", str(run)])
+    train.run(["--resume", str(run)])
     assert steps(run) == 64 and (run / CHECKPOINTS / LATEST).read_text().strip() == "ckpt_000000000064"
     a, b = SB3Policy.load(tiny_run).model, SB3Policy.load(run).model  # the same run as an uninterrupted one
     assert all(torch.equal(p, q) for p, q in zip(a.policy.state_dict().values(), b.policy.state_dict().values()))
@@ -164,7 +164,7 @@ def test_a_running_run_is_locked(train: ModuleType, tiny_run: Path, tmp_path: Pa
     run = tmp_path / "locked"
     shutil.copytree(tiny_run, run)
     with RunLock(run).acquire():  # as another train.py writing it
-        line = error_line(lambda: train.main(["--resume", str(run), "--timesteps", "96"]), capsys)
+        line = error_line(lambda: train.run(["--resume", str(run), "--timesteps", "96"]), capsys)
         assert f"{run} is in use by another train.py (pid {os.getpid()})" in line
     assert steps(run) == 64  # nothing was trained or written
     holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from agents.runs import RunLock; "
@@ -177,7 +177,7 @@ def test_a_running_run_is_locked(train: ModuleType, tiny_run: Path, tmp_path: Pa
     finally:
         holder.send_signal(signal.SIGKILL)  # kill -9: the OS drops the lock
         holder.wait(timeout=30)
-    train.main(["--resume", str(run), "--timesteps", "96"])
+    train.run(["--resume", str(run), "--timesteps", "96"])
     assert steps(run) == 96
 
 
@@ -195,7 +195,7 @@ def test_config_errors_stop_before_anything_is_written(tmp_path: Path) -> None:
 
 
 def test_same_seed_same_result(train: ModuleType, tiny_run: Path, tmp_path: Path) -> None:
-    again = train.main([*TINY, "--out", str(tmp_path / "again")])
+    again = train.run([*TINY, "--out", str(tmp_path / "again")])
     a, b = SB3Policy.load(tiny_run).model, SB3Policy.load(again).model
     for (name, p), (_, q) in zip(a.policy.state_dict().items(), b.policy.state_dict().items()):
         assert torch.equal(p, q), name
@@ -207,7 +207,7 @@ def test_tensorboard_without_the_package_fails_clearly(train: ModuleType, tmp_pa
     try:
         import tensorboard  # noqa: F401
     except ImportError:
-        line = error_line(lambda: train.main([*TINY, "--out", str(tmp_path / "tb"), "--tensorboard"]), capsys)
+        line = error_line(lambda: train.run([*TINY, "--out", str(tmp_path / "tb"), "--tensorboard"]), capsys)
         assert "tensorboard" in line and not (tmp_path / "tb").exists()
     else:
         pytest.skip(reason="tensorboard is installed here, so the missing-package error cannot occur")

@@ -20,10 +20,11 @@ import pytest
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecNormalize
 
+from agents.commands import compare, track_video
 from agents.run_files import RunError, load_stats
 from agents.runs import SB3Policy, env_spaces_venv, load_config
 
-from .tiny_run import load_script, tiny_run, train  # noqa: F401  (fixtures)
+from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
 
 COMPARE = ["--episodes", "2", "--train-episodes", "11", "--global-trials", "2", "--oracle-budget", "8", "--bootstrap", "20"]
 
@@ -100,12 +101,12 @@ def test_planted_models_load_without_running_the_plant(planted: tuple[Path, Path
     run, marker = planted
     shutil.copy(run / "model.zip", tmp_path / "control.zip")
     assert SB3Policy.load(run).model.num_timesteps == 64 and SB3Policy.load(run, "best") is not None
-    load_script("compare").main(["--model", str(run), *COMPARE, "--out", str(tmp_path / "compare")])
+    compare.run(["--model", str(run), *COMPARE, "--out", str(tmp_path / "compare")])
     assert (tmp_path / "compare" / "summary.md").is_file()
-    load_script("track_video").main(["--synthetic", "--n-frames", "12", "--detector", "regions", "--tuned", str(run),
-                                     "--no-video", "--out", str(tmp_path / "track")])
+    track_video.main(["--synthetic", "--n-frames", "12", "--detector", "regions", "--tuned", str(run),
+                      "--no-video", "--out", str(tmp_path / "track")])
     assert json.loads((tmp_path / "track" / "summary.json").read_text())["filter"] == "ufir_cmn"
-    train.main(["--resume", str(run), "--timesteps", "96"])
+    train.run(["--resume", str(run), "--timesteps", "96"])
     assert SB3Policy.load(run).model.num_timesteps == 96
     assert not marker.exists()
     naive(PPO.load, tmp_path / "control.zip", device="cpu")  # positive control
@@ -119,10 +120,9 @@ def test_pickled_statistics_are_refused_everywhere(tiny_run: Path, train: Module
     pickle_stats(run, marker)
     with pytest.raises(RunError, match="--trust-pickle"):
         SB3Policy.load(run)
-    line = exit_line(load_script("compare").main, ["--model", str(run), *COMPARE, "--out", str(tmp_path / "c")], capsys)
+    line = exit_line(compare.main, ["--model", str(run), *COMPARE, "--out", str(tmp_path / "c")], capsys)
     assert f"{run / 'vecnormalize.pkl'}: statistics stored as a pickle" in line and "--trust-pickle" in line
-    line = exit_line(load_script("track_video").main, ["--synthetic", "--tuned", str(run), "--out", str(tmp_path / "t")],
-                     capsys)
+    line = exit_line(track_video.main, ["--synthetic", "--tuned", str(run), "--out", str(tmp_path / "t")], capsys)
     assert "vecnormalize.pkl" in line and "--trust-pickle" in line
     line = exit_line(train.main, ["--resume", str(run)], capsys)
     assert "no complete checkpoint" in line and "vecnormalize.pkl" in line and "--trust-pickle" in line
@@ -136,9 +136,9 @@ def test_trust_pickle_loads_an_honest_old_run_and_converts_it(tiny_run: Path, tr
     shutil.copytree(tiny_run, run)
     pickle_stats(run, None)
     assert not list(run.rglob("*vecnormalize.json"))
-    load_script("track_video").main(["--synthetic", "--n-frames", "12", "--detector", "regions", "--tuned", str(run),
-                                     "--trust-pickle", "--no-video", "--out", str(tmp_path / "track")])
+    track_video.main(["--synthetic", "--n-frames", "12", "--detector", "regions", "--tuned", str(run),
+                      "--trust-pickle", "--no-video", "--out", str(tmp_path / "track")])
     assert (run / "vecnormalize.json").is_file()
-    train.main(["--resume", str(run), "--timesteps", "96", "--trust-pickle"])
+    train.run(["--resume", str(run), "--timesteps", "96", "--trust-pickle"])
     assert (run / "checkpoints" / "ckpt_000000000064" / "vecnormalize.json").is_file()
     assert SB3Policy.load(run).model.num_timesteps == 96  # no pickle needed any more

@@ -10,11 +10,12 @@ import cv2
 import numpy as np
 import pytest
 
+from agents.commands import track_video, video_camera, video_table
 from envs.video.synthetic import VideoScenario, render
 from agents.video_tuning import FixedTuner
 
 from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
-from .tiny_run import load_script, tiny_run, train  # noqa: F401  (fixtures)
+from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
 
 SUMMARY_KEYS = ("raw_success_auc", "filtered_success_auc", "n_frames", "n_missing")
 
@@ -26,8 +27,8 @@ def rows(path: Path) -> list[dict[str, str]]:
 
 def test_track_video_synthetic(tmp_path):
     out = tmp_path / "track"
-    load_script("track_video").main(["--synthetic", "--n-frames", "30", "--detector", "template", "--filter", "kf",
-                                     "--seed", "4", "--out", str(out)])
+    track_video.main(["--synthetic", "--n-frames", "30", "--detector", "template", "--filter", "kf",
+                      "--seed", "4", "--out", str(out)])
     summary = json.loads((out / "summary.json").read_text())
     assert all(k in summary for k in SUMMARY_KEYS) and summary["n_frames"] == 30
     assert 0 <= summary["raw_success_auc"] <= 1 and 0 <= summary["filtered_success_auc"] <= 1
@@ -47,8 +48,8 @@ def test_track_video_otb_folder_keeps_one_based_boxes(tmp_path, monkeypatch):
     gt = video.boxes + [1.0, 1.0, 0.0, 0.0]  # OTB boxes are 1-based
     (folder / "groundtruth_rect.txt").write_text("\n".join(",".join(f"{v:.3f}" for v in b) for b in gt))
     out = tmp_path / "out"
-    load_script("track_video").main(["--frames", str(folder), "--detector", "regions", "--filter", "ufir",
-                                     "--no-video", "--out", str(out)])
+    track_video.main(["--frames", str(folder), "--detector", "regions", "--filter", "ufir",
+                      "--no-video", "--out", str(out)])
     first = rows(out / "frames.csv")[0]
     np.testing.assert_allclose([float(first["raw_x"]), float(first["gt_x"])], [gt[0, 0], gt[0, 0]], atol=1e-3)
     assert json.loads((out / "summary.json").read_text())["raw_success_auc"] > 0.5
@@ -56,16 +57,16 @@ def test_track_video_otb_folder_keeps_one_based_boxes(tmp_path, monkeypatch):
 
 def test_track_video_with_a_trained_run(tmp_path, tiny_run):
     out = tmp_path / "tuned"
-    load_script("track_video").main(["--synthetic", "--n-frames", "20", "--detector", "regions", "--tuned", str(tiny_run),
-                                     "--no-video", "--out", str(out)])
+    track_video.main(["--synthetic", "--n-frames", "20", "--detector", "regions", "--tuned", str(tiny_run),
+                      "--no-video", "--out", str(out)])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["filter"] == "ufir_cmn" and set(summary["params"]) == {"psi", "horizon"}
 
 
 def test_video_table_tiny(tmp_path):
     out = tmp_path / "table"
-    load_script("video_table").main(["--n-test", "3", "--n-train", "1", "--frames", "30", "--detectors", "regions",
-                                     "template", "--backends", "kf", "--grid", "3", "--out", str(out)])
+    video_table.main(["--n-test", "3", "--n-train", "1", "--frames", "30", "--detectors", "regions",
+                      "template", "--backends", "kf", "--grid", "3", "--out", str(out)])
     summary = json.loads((out / "summary.json").read_text())["detectors"]
     assert set(summary) == {"regions", "template"}
     assert {"rule", "tuned"} <= set(summary["regions"]["kf"])
@@ -91,25 +92,10 @@ def test_video_table_refuses_a_used_out(tmp_path, capsys):
     out.mkdir()
     (out / "keep.txt").write_text("mine")
     with pytest.raises(SystemExit) as exc:
-        load_script("video_table").main(["--n-test", "2", "--frames", "30", "--detectors", "regions",
-                                         "--out", str(out)])
+        video_table.main(["--n-test", "2", "--frames", "30", "--detectors", "regions",
+                          "--out", str(out)])
     assert exc.value.code == 2 and "not empty" in capsys.readouterr().err
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
-
-
-def test_publish_folder_is_all_or_nothing(tmp_path):
-    common = load_script("video_common")
-    out = tmp_path / "out"
-    out.mkdir()  # an empty folder is taken
-    common.publish_folder(out, {"a.txt": "1", "sub/b.txt": "2"})
-    assert (out / "sub" / "b.txt").read_text() == "2"
-    with pytest.raises(ValueError, match="not empty"):  # a second run racing for it gets an error, not a mix
-        common.publish_folder(out, {"a.txt": "changed", "c.txt": "3"})
-    assert (out / "a.txt").read_text() == "1" and not (out / "c.txt").exists()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # its temporary folder is gone
-    (tmp_path / "file").write_text("x")
-    with pytest.raises(ValueError, match="not a folder"):
-        common.publish_folder(tmp_path / "file", {"a.txt": "1"})
 
 
 COUNT = ("0", "-1", "abc", "1_0", "2.5")  # not integers >= 1 ("1_0" is 10 to int())
@@ -132,18 +118,18 @@ TABLE_MISUSE = [
 
 @pytest.mark.parametrize("case", TABLE_MISUSE, ids=str)
 def test_video_table_misuse(case, misuse_paths, capsys):
-    check_misuse(load_script("video_table").main, case, misuse_paths, capsys)
+    check_misuse(video_table.main, case, misuse_paths, capsys)
 
 
 def test_video_table_tuned_backend_conflict(misuse_paths, capsys):
     tuned = misuse_paths.root / "tuned.json"
     FixedTuner("kf", np.zeros(2)).save(tuned)  # a grid-searched kf action
-    check_misuse(load_script("video_table").main, misuse("--tuned", str(tuned), "--backends", "ufir_cmn"),
+    check_misuse(video_table.main, misuse("--tuned", str(tuned), "--backends", "ufir_cmn"),
                  misuse_paths, capsys)
 
 
 def test_video_camera_tiny(tmp_path):
     out = tmp_path / "camera"
-    load_script("video_camera").main(["--n-videos", "2", "--frames", "30", "--smoothing", "1", "10", "--out", str(out)])
+    video_camera.main(["--n-videos", "2", "--frames", "30", "--smoothing", "1", "10", "--out", str(out)])
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["by_smoothing"]) == {"1.0", "10.0"} and (out / "camera.png").is_file()

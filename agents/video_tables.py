@@ -1,11 +1,11 @@
-"""Shared pieces of the video scripts (``track_video.py``, ``video_table.py``, ``video_camera.py``):
-atomic output files and folders, and the paired bootstrap.
+"""Output files of the video commands (:mod:`agents.commands.track_video`, ``video_table``, ``video_camera``)
+and of ``smooth``: CSV / JSON text, atomic files and whole output folders.
 
-Every output file is written to a temporary file in the destination folder and moved into place with
-``os.replace``, so a killed run leaves either the previous file or the complete new one. :func:`publish_folder`
-does the same for a whole output folder: the files are written into a temporary sibling folder that is then
-renamed to the destination, which must be absent or empty (``rename`` refuses a non-empty one, so of two runs
-racing for one folder exactly one publishes and nothing is overwritten).
+Every output file is written atomically (:mod:`envs.data.atomic_files`: a temporary file in the destination folder
+moved into place with ``os.replace``), so a killed run leaves either the previous file or the complete new one.
+:func:`publish_folder` does the same for a whole output folder: the files are written into a temporary sibling
+folder that is then renamed to the destination, which must be absent or empty (``rename`` refuses a non-empty
+one, so of two runs racing for one folder exactly one publishes and nothing is overwritten).
 """
 
 from __future__ import annotations
@@ -20,15 +20,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from agents.run_files import atomic_write
+from envs.data.atomic_files import write_text_atomic
 
 
 def write_text(path: Path, text: str) -> None:
-    """``text`` into ``path`` atomically (:func:`agents.run_files.atomic_write`), creating its folder if needed."""
+    """``text`` into ``path`` atomically (:mod:`envs.data.atomic_files`), creating its folder if needed."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, lambda p: p.write_text(text))
+    write_text_atomic(path, text)
 
 
 def json_text(doc: Any) -> str:
@@ -83,10 +81,3 @@ def publish_folder(out: Path, files: dict[str, str]) -> None:
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
-
-def bootstrap_ci(diff: np.ndarray, rng: np.random.Generator, reps: int = 2000) -> tuple[float, float]:
-    """95 % percentile bootstrap interval of the mean of paired differences ``diff`` (n,)."""
-    diff = np.asarray(diff, dtype=float)
-    means = diff[rng.integers(0, len(diff), (reps, len(diff)))].mean(axis=1)
-    lo, hi = np.percentile(means, [2.5, 97.5])
-    return float(lo), float(hi)

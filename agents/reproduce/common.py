@@ -1,19 +1,19 @@
-"""Shared pieces of ``scripts/reproduce.py``: run settings, error measures, markdown tables, atomic output.
+"""Shared pieces of the reproduction (``scripts/reproduce.py``, :mod:`agents.commands.reproduce`): run settings,
+error measures, markdown tables and verdicts, figure output.
 
-Every experiment module (``reproduce_sim``, ``reproduce_otb``) returns a :class:`Section` (markdown text plus
-named matplotlib figures); ``reproduce.py`` writes them. Files are written atomically: a temporary file in the
-output folder, then ``os.replace``, so a killed run leaves either the old file or the new one, never a part.
+Every experiment module (:mod:`agents.reproduce.shmaliy_cmn`, :mod:`agents.reproduce.mo_fir`,
+:mod:`agents.reproduce.otb`) returns a :class:`Section` (markdown text plus named matplotlib figures); the
+command writes them. Files are written atomically (:mod:`envs.data.atomic_files`), so a killed run leaves either the
+old file or the new one, never a part.
 """
 
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
+from typing import Literal
 
 import matplotlib
 
@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import filters  # noqa: E402
+from envs.data.atomic_files import atomic_write_file  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -31,11 +32,11 @@ class Settings:
     mc: int  # Monte Carlo tracks per grid point (simulations) / noise draws per OTB sequence
     seed: int  # base seed; experiment k draws from np.random.default_rng([seed, k])
     quick: bool  # coarse grids and few runs (the test's setting)
-    fig2_psi: tuple[float, ...]  # ψ grid of seed 000 Fig. 2
+    fig2_psi: tuple[float, ...]  # ψ grid of [Shmaliy-CMN] Fig. 2
     nopt_psi: tuple[float, ...]  # ψ grid of the N_opt(ψ) search
     nopt_horizons: tuple[int, ...]  # candidate horizons N of the N_opt(ψ) search (frames)
     otb_horizons: tuple[int, ...]  # candidate horizons for the Car4 / Suv horizon sweeps (frames)
-    fir_horizons: tuple[int, ...]  # Kwon FIR horizons of the seed 004 sweep (frames)
+    fir_horizons: tuple[int, ...]  # Kwon FIR horizons of the [Mo-FIR] sweep (frames)
     otb_sigma_w: tuple[float, ...]  # px/s², σ_w grid of the KFs tuned on the OTB ground truth
 
     def rng(self, experiment: int) -> np.random.Generator:
@@ -106,26 +107,23 @@ def md_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-_UMASK = os.umask(0o022)  # read the process umask (os.umask returns the old value) ...
-os.umask(_UMASK)  # ... and put it back
+def verdict(agrees: bool, why: str, *, style: Literal["brackets", "colon"] = "brackets") -> str:
+    """The verdict cell of a claim: ``agrees`` or ``**differs**``, then the reason ``why`` in brackets
+    (``agrees (why)``) or, with ``style="colon"``, after a colon (``agrees: why``); an empty ``why`` gives the
+    word alone. (The [Shmaliy-CMN] tables use the colon, the [Mo-FIR] and OTB tables the brackets.)
 
-
-def write_atomic(path: Path, write: Callable[[IO[bytes]], None]) -> None:
-    """Write ``path`` through ``write(file)`` into a temporary file in the same folder, then ``os.replace`` it."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            write(fh)
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    >>> verdict(True, "counted above 1.5"), verdict(False, "x", style="colon"), verdict(True, "")
+    ('agrees (counted above 1.5)', '**differs**: x', 'agrees')
+    """
+    word = "agrees" if agrees else "**differs**"
+    if not why:
+        return word
+    return f"{word}: {why}" if style == "colon" else f"{word} ({why})"
 
 
 def save_figure(fig: plt.Figure, path: Path) -> None:
     """Save ``fig`` as PNG atomically and close it."""
-    write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=110, bbox_inches="tight"))
+    atomic_write_file(path, lambda fh: fig.savefig(fh, format="png", dpi=110, bbox_inches="tight"))
     plt.close(fig)
 
 

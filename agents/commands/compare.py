@@ -1,0 +1,371 @@
+"""Compare a trained tuner with every baseline on the same held-out episodes of an env and back end.
+
+    python scripts/compare.py --model runs/ppo_ufir_cmn_sim_s0 --episodes 500
+    python scripts/compare.py --model runs/ppo_ufir_cmn_sim_s0 --env-kwargs source=otb          # transfer: OTB replay
+    python scripts/compare.py --model RUN --env-kwargs source=otb_tracker "trackers=[SiamRPN++, CFNet, STRUCK, MDNet]"
+    python scripts/compare.py --model runs/ppo_s0 runs/ppo_s1 runs/ppo_s2 --out runs/ppo_seeds   # across training seeds
+
+The env: the run's own (config.yml's env id and env_kwargs) unless --env / --env-kwargs KEY=VALUE ... change it
+(any envs.episodes.config.EnvConfig field, YAML values, KEY:VALUE also accepted, split at the first = or :; checked before
+any work). The model must fit the evaluation env: equal observation and action spaces and actions that set the
+same parameters of the same back end (agents.safe_load.check_env_match); everything else may differ (transfer).
+
+Episodes (agents/splits.py): --split (default test) and --seed choose them, the same seed always the same
+episodes. sim / video: --episodes N noise seeds of the split (seed 0: episodes 0 .. N-1, today's fixed test set;
+another seed: N others drawn with it). OTB sources enumerate instead (no --episodes): "otb" every sequence of the
+split × --seeds-per-sequence noise seeds, "otb_tracker" every sequence × every tracker of the env's set (tracker
+output has no noise seed). --seed also seeds the baselines' training episodes, Optuna, the regressor and the
+bootstrap.
+
+Methods (agents.baselines, agents.adaptive): raw (the measurements themselves, no filter; a frame without a
+measurement is scored as a missing estimate: a failure for success AUC / precision, left out of the RMSE), rule,
+rule_est_sigma, rule_true_sigma (sim only), oracle (per-episode search maximising the env's reward with the
+truth), oracle_auc (maximising success AUC; oracle_rmse, minimising RMSE, when the reward is not RMSE), global,
+amortised, adaptive, the trained model (named by its algorithm, e.g. ppo) and its best-on-validation checkpoint
+(<algo>_best). All methods see the same episodes (common random numbers); global and amortised are fitted on
+train-split episodes of the evaluation env.
+
+Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by agents.retune_eval instead: raw, rule (every
+window), oneshot_oracle (the best single action for the track, with the truth), oneshot_learned (--oneshot-model
+RUN_DIR: a FilterTune-v0 run's action for the whole track, chosen seeing the whole track; left out without it) and
+oneshot_learned_online (the same model choosing from the warm-up window only), window_oracle (greedy per-window
+search with the truth, carrying the filter state), adaptive (Sage–Husa), imm (IMM over two KF tunings) and the
+trained model(s), all on the frames after the warm-up window; summary.md adds the share of the one-shot →
+per-window gap each method closes and the paired log-ratio against oneshot_learned; parameter_schedule.png shows
+test episode 0's parameters per window against its true regime switches (scenario=nonstationary).
+
+    python scripts/compare.py --model runs/ppo_retune --oneshot-model runs/ppo_oneshot --env-kwargs scenario=nonstationary
+
+Writes to --out (default RUN_DIR/compare; a new or empty folder, nothing is overwritten): results.csv (one
+row per method × episode: method, episode, sequence, tracker, rmse, success_auc, precision20, …; sequence and
+tracker empty for sim), summary.md (tables with 95 % bootstrap CIs that resample sequences — an OTB sequence or
+a synthetic video with all its episodes — and simulated episodes, each its own cluster; sources other than sim
+add success AUC / precision against raw and rule, OTB sources per-attribute deltas and, for otb_tracker, rows
+per tracker), gain_boxplot.png, otb_curves.png,
+trajectory.png; with several --model (FilterTune-v0 runs of one algorithm and env, distinct seeds) every model is
+scored on the same episodes as <algo>_s<seed> / <algo>_best_s<seed> beside one set of baselines, and summary.md
+adds their IQM and mean across seeds with stratified bootstrap CIs (rliable's estimator, agents.seeds_report)
+and performance_profile.png. The run's models are loaded without unpickling anything and checked against its config.yml
+(agents.safe_load) and against the evaluation env before any baseline is fitted; an old run whose statistics
+are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can run code: only for runs you
+trust). Bad arguments or run files: one line naming them, exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import torch
+
+from agents.baselines import GridSearch, OraclePolicy, RulePolicy
+from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, key_values, nonnegative_int,
+                        out_dir, positive_int, tracker_set)
+from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,
+                             standard_policies)
+from agents.plots import gain_boxplot, otb_curves, parameter_schedule, performance_profile, trajectories
+from agents.report import by_method, summary_markdown, write_results_csv
+from agents.report_retune import retune_tables
+from agents.retune_eval import (ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
+                                evaluate_retune, window_oracle)
+from agents.run_files import RunError
+from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env
+from agents.safe_load import check_env_match
+from agents.seeds_report import profile_curves, seeds_section
+from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
+from envs.data.atomic_files import write_text_atomic
+from envs.episodes.config import EnvConfig
+
+ONE_STEP_ENV = "bboxtune/FilterTune-v0"
+RETUNE_ENV = "bboxtune/FilterRetune-v0"
+ENVS = (ONE_STEP_ENV, RETUNE_ENV)
+MIN_TRAIN_EPISODES = 11  # AmortisedPolicy's MLP holds out ceil(10 %) for early stopping and needs >= 2 of them
+DEFAULT_EPISODES = 500  # sim / video
+DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episodes
+
+
+def build_parser() -> ArgumentParser:
+    p = ArgumentParser(prog="compare.py", description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False)
+    p.add_argument("--model", type=existing_dir, nargs="+", required=True, metavar="RUN_DIR",
+                   help="a scripts/train.py run directory; several (FilterTune-v0 runs of one env, e.g. training seeds): "
+                        "each scored on the same episodes as <algo>_s<seed>, and summary.md adds IQM and mean across "
+                        "them with stratified bootstrap CIs (agents.seeds_report) and performance_profile.png; needs --out")
+    p.add_argument("--env", default=None, metavar="ID", help=f"env id (default: the run's; one of {ENVS}, the run's kind)")
+    p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
+                   help="override the run's env arguments (envs.episodes.config.EnvConfig fields, YAML values; KEY:VALUE also "
+                        "accepted), e.g. source=otb track_length=100; the split is --split")
+    p.add_argument("--trackers", type=tracker_set, default=None, metavar="SET",
+                   help="source otb_tracker: score these trackers' output instead of the run's: 'test' (the held-out "
+                        "trackers of envs.data.otb.TRACKER_SPLIT), 'train' or comma-separated names")
+    p.add_argument("--split", default="test", choices=SPLITS, help="which split's episodes (and OTB sequences) are scored")
+    p.add_argument("--episodes", type=int_range(1, SPLIT_SIZE), default=None,
+                   help=f"sim / video: episodes scored (default {DEFAULT_EPISODES}); OTB sources enumerate theirs "
+                        "and take no count")
+    p.add_argument("--seeds-per-sequence", type=positive_int, default=None, metavar="K",
+                   help=f"source otb: noise seeds per sequence (default {DEFAULT_SEEDS_PER_SEQUENCE})")
+    p.add_argument("--seed", type=nonnegative_int, default=0,
+                   help="which episodes are scored (0: episodes 0 .. N-1 of the split), and the seed of the baselines' "
+                        "training episodes, Optuna, the regressor and the bootstrap")
+    p.add_argument("--out", type=out_dir, default=None, help="output folder, new or empty (default RUN_DIR/compare)")
+    p.add_argument("--train-episodes", type=int_range(MIN_TRAIN_EPISODES), default=1000,
+                   help="train episodes for the amortised regressor (>= 11: it holds out 10 %% for early stopping, "
+                        "which needs 2)")
+    p.add_argument("--global-trials", type=positive_int, default=64, help="Optuna TPE trials of the global tuner")
+    p.add_argument("--oracle-budget", type=positive_int, default=300, help="first-stage candidates of the oracle's grid search")
+    p.add_argument("--bootstrap", type=positive_int, default=2000, help="bootstrap resamples")
+    p.add_argument("--oneshot-model", type=existing_dir, default=None, metavar="RUN_DIR",
+                   help=f"{RETUNE_ENV} runs: a {ONE_STEP_ENV} run scored as oneshot_learned (its action for the whole "
+                        "track); without it that row is left out")
+    p.add_argument("--trust-pickle", action="store_true",
+                   help="accept an old run's pickled vecnormalize.pkl (pickles can run code: only for runs you trust)")
+    return p
+
+
+def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """The env id and kwargs to evaluate in: the run's, changed by --env / --env-kwargs (checked here)."""
+    env_id = args.env or cfg["env_id"]
+    if env_id != cfg["env_id"]:
+        parser.error(f"--env {env_id}: {args.model} was trained on {cfg['env_id']}; compare.py scores a run on its own env id")
+    if args.oneshot_model is not None and env_id != RETUNE_ENV:
+        parser.error(f"--oneshot-model: only for runs of {RETUNE_ENV} (this one is of {env_id})")
+    try:
+        overrides = key_values("--env-kwargs", args.env_kwargs)
+    except ValueError as err:
+        parser.error(str(err))
+    if "split" in overrides:
+        parser.error("--env-kwargs split: the split is chosen with --split")
+    if args.trackers is not None:
+        if "trackers" in overrides:
+            parser.error("--trackers: given twice (also in --env-kwargs trackers=...)")
+        overrides["trackers"] = list(args.trackers)
+    env_kwargs = {**cfg["env_kwargs"], **overrides}
+    try:
+        EnvConfig.from_kwargs(**{**env_kwargs, "split": args.split})
+    except (TypeError, ValueError) as err:
+        parser.error(f"{env_flags(args)}: {err}" if overrides else f"{args.model}/config.yml: env_kwargs: {err}")
+    return env_id, env_kwargs
+
+
+def env_flags(args: argparse.Namespace) -> str:
+    """The flags that changed the run's env, for error messages ("" if none)."""
+    return "/".join(flag for flag, given in (("--env-kwargs", args.env_kwargs), ("--trackers", args.trackers)) if given)
+
+
+def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env) -> list[EpisodeSpec]:
+    """The episodes to score (agents.evaluate.evaluation_episodes), after checking the flags that choose them."""
+    source = env.unwrapped.config.source
+    k = args.seeds_per_sequence
+    if source in OTB_SOURCES and args.episodes is not None:
+        parser.error(f"--episodes: source {source!r} enumerates its episodes (every {args.split}-split sequence × "
+                     f"{'tracker' if source == 'otb_tracker' else '--seeds-per-sequence noise seeds'}); leave it out")
+    if source != "otb" and k is not None:
+        parser.error(f"--seeds-per-sequence applies to source 'otb' only (this evaluation's source is {source!r}: "
+                     f"{'one episode per sequence × tracker' if source == 'otb_tracker' else 'use --episodes'})")
+    n = (args.episodes or DEFAULT_EPISODES) if source not in OTB_SOURCES else None
+    k = (k or DEFAULT_SEEDS_PER_SEQUENCE) if source == "otb" else None
+    return evaluation_episodes(env, args.split, episodes=n, seeds_per_sequence=k, seed=args.seed)
+
+
+def load_learned(run: Path, cfg: dict[str, Any], env: gym.Env, trust_pickle: bool, suffix: str = "") -> list[SB3Policy]:
+    """The run's final model and, if the run has one, its best-on-validation model (``<algo>_best``), named with
+    ``suffix``, each checked against the evaluation env ``env``."""
+    learned = [SB3Policy.load(run, "final", trust_pickle=trust_pickle)]
+    if (run / "best_model.zip").exists():
+        learned.append(SB3Policy.load(run, "best", trust_pickle=trust_pickle))
+    for policy, prefix in zip(learned, ("", "best_")):
+        policy.name = f"{cfg['algo']}{'_best' if prefix else ''}{suffix}"
+        check_env_match(run / f"{prefix}model.zip", policy.model, cfg, env)
+    return learned
+
+
+def load_seed_runs(runs: list[Path], cfg: dict[str, Any], env: gym.Env, trust_pickle: bool
+                   ) -> tuple[list[SB3Policy], dict[str, list[str]]]:
+    """Several runs of one FilterTune-v0 env (training seeds): their models named ``<algo>[_best]_s<seed>`` and
+    the groups to aggregate ({``<algo>``: names, ``<algo>_best``: names if every run has a best model})."""
+    learned: list[SB3Policy] = []
+    seeds: dict[int, Path] = {}
+    for run in runs:
+        other = load_config(run)
+        if (other["env_id"], other["env_kwargs"], other["algo"]) != (cfg["env_id"], cfg["env_kwargs"], cfg["algo"]):
+            raise RunError(f"{run}: {other['algo']} on {other['env_id']} {other['env_kwargs']}; several --model must be "
+                           f"runs of one algorithm and env ({runs[0]}: {cfg['algo']} on {cfg['env_id']} {cfg['env_kwargs']})")
+        if other["seed"] in seeds:
+            raise RunError(f"{run}: seed {other['seed']} again (also {seeds[other['seed']]}); several --model need distinct seeds")
+        seeds[other["seed"]] = run
+        learned += load_learned(run, other, env, trust_pickle, suffix=f"_s{other['seed']}")
+    algo = cfg["algo"]
+    groups = {name: [p.name for p in learned if p.name.rsplit("_s", 1)[0] == name] for name in (algo, f"{algo}_best")}
+    return learned, {k: v for k, v in groups.items() if len(v) == len(runs)}
+
+
+def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneShotLearned:
+    """``--oneshot-model``: a FilterTune-v0 run's final model, checked against a FilterTune-v0 env with the
+    evaluation's arguments (which it observes the whole track in)."""
+    cfg = load_config(args.oneshot_model)
+    if cfg["env_id"] != ONE_STEP_ENV:
+        raise RunError(f"--oneshot-model {args.oneshot_model}: trained on {cfg['env_id']}, not {ONE_STEP_ENV}")
+    try:
+        tune_env = make_env(ONE_STEP_ENV, env_kwargs, split=args.split)
+    except ENV_ERRORS as err:
+        raise RunError(f"--oneshot-model: env {ONE_STEP_ENV} {env_kwargs} cannot be built ({' '.join(str(err).split())})") from None
+    policy = SB3Policy.load(args.oneshot_model, "final", trust_pickle=args.trust_pickle)
+    check_env_match(args.oneshot_model / "model.zip", policy.model, cfg, tune_env)
+    return OneShotLearned(policy, tune_env)
+
+
+def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], env_and_kwargs: tuple[gym.Env, dict[str, Any]],
+                   episodes: list[EpisodeSpec], learned: list[SB3Policy], oneshot: OneShotLearned | None, out: Path,
+                   command: str) -> Path:
+    """The FilterRetune-v0 comparison (agents.retune_eval): results.csv, summary.md and the figures in ``out``."""
+    env, env_kwargs = env_and_kwargs
+    config = env.unwrapped.config
+    search = GridSearch(budget=args.oracle_budget)
+    online = [OneShotLearned(oneshot.policy, oneshot.tune_env, online=True)] if oneshot else []
+    methods = [Sequential(RulePolicy()), OneShotOracle(search), *([oneshot] if oneshot else []), *online,
+               window_oracle(search), *(Sequential(p) for p in learned)]
+    print(f"seed: {args.seed}\n{cfg['algo']} from {args.model}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} "
+          f"episodes, window {config.window}")
+    start = time.perf_counter()
+    result = evaluate_retune(env, methods, episodes, progress=True)
+    print(f"scored {len(result.truth_at_test)} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
+    write_results_csv(out / "results.csv", result.rows)
+    title = f"{cfg['algo']} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
+    gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
+    ex = result.example
+    shown = {k: v for k, v in ex["schedules"].items() if k in ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, cfg["algo"])}
+    parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
+    settings_md = {"command": f"`{command}`",
+                   "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})",
+                   "oneshot_learned": f"`{args.oneshot_model}` (its final model)" if oneshot else "not scored (no --oneshot-model)",
+                   "env": f"`{env_kwargs}`",
+                   "test episodes": describe_episodes(args, config.source, episodes),
+                   "scored frames": f"every frame after the warm-up window (the first {config.window}, filtered by the rule "
+                                    "for every filter method)",
+                   "oracles": f"grid of <= {search.budget} actions, then {search.rounds} local refinements, with the truth: "
+                              f"{ONESHOT_ORACLE} one action for the whole track, {WINDOW_ORACLE} greedily per window"}
+    summary = summary_markdown(result.rows, result.truth_at_test, learned=[p.name for p in learned], title=title,
+                               settings=settings_md, figures=["gain_boxplot.png", "parameter_schedule.png"],
+                               n_boot=args.bootstrap, seed=args.seed, rmse_oracle=WINDOW_ORACLE)
+    head, figures = summary.split("## Figures")
+    summary = head + "\n".join(retune_tables(result.rows, [p.name for p in learned], args.bootstrap, args.seed)) + \
+        "\n## Figures" + figures
+    write_text_atomic(out / "summary.md", summary)
+    print(summary.split("## Paired")[0])
+    print(f"wrote {out}")
+    return out
+
+
+def describe_episodes(args: argparse.Namespace, source: str, episodes: list[EpisodeSpec]) -> str:
+    """The settings line of the scored episodes."""
+    n = len(episodes)
+    if source in OTB_SOURCES:
+        sequences = len({e.sequence for e in episodes})
+        per = (f"× {len({e.tracker for e in episodes})} trackers (one episode per sequence with the tracker's output)"
+               if source == "otb_tracker" else f"× {n // sequences} noise seeds")
+        return f"{n} = {sequences} {args.split}-split sequences {per}; noise seeds chosen with --seed {args.seed}"
+    if args.split == "test" and args.seed == 0:
+        return f"{n} (test split: noise seeds 10⁹ + i, i < {n})"
+    return f"{n} ({args.split} split, chosen with --seed {args.seed}: agents.splits.split_seeds)"
+
+
+def run(argv: list[str] | None = None) -> Path:
+    """Score the run(s) the command line ``argv`` names; returns the output folder."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    torch.set_num_threads(1)
+    command = shlex.join(["python", "scripts/compare.py", *(sys.argv[1:] if argv is None else argv)])
+    runs, args.model = args.model, args.model[0]
+    if len(runs) > 1 and args.out is None:
+        parser.error("--out: required with several --model")
+    out = args.out or args.model / "compare"
+    groups: dict[str, list[str]] = {}
+    try:  # everything that can be checked is checked before the (long) fitting and scoring
+        check_free(out, "choose another --out")
+        cfg = load_config(args.model)
+        if cfg["env_id"] not in ENVS or (len(runs) > 1 and cfg["env_id"] != ONE_STEP_ENV):
+            raise RunError(f"{args.model} was trained on {cfg['env_id']}; compare.py scores runs of "
+                           f"{ENVS if len(runs) == 1 else ONE_STEP_ENV + ' (several --model)'}")
+        env_id, env_kwargs = evaluation_env(parser, args, cfg)
+        try:
+            test_env, train_env = make_env(env_id, env_kwargs, split=args.split), make_env(env_id, env_kwargs, split="train")
+        except ENV_ERRORS as err:
+            raise RunError(f"{env_flags(args) or '--model'}: env {env_id} {env_kwargs} cannot be built "
+                           f"({' '.join(str(err).split())})") from None
+        episodes = episode_plan(parser, args, test_env)
+        if len(runs) > 1:
+            learned, groups = load_seed_runs(runs, cfg, test_env, args.trust_pickle)
+        else:
+            learned = load_learned(args.model, cfg, test_env, args.trust_pickle)
+        oneshot = load_oneshot(args, env_kwargs) if args.oneshot_model is not None else None
+        out.mkdir(parents=True, exist_ok=True)
+    except (RunError, OSError) as err:
+        parser.error(str(err))
+    if env_id == RETUNE_ENV:
+        return compare_retune(args, cfg, (test_env, env_kwargs), episodes, learned, oneshot, out, command)
+    config = test_env.unwrapped.config
+    algo, source = cfg["algo"], config.source
+    print(f"seed: {args.seed}\n{algo} from {args.model}: {env_id} {env_kwargs}, {len(episodes)} {args.split} episodes")
+    search = GridSearch(budget=args.oracle_budget)
+    settings = BaselineSettings(train_episodes=args.train_episodes, global_episodes=min(300, args.train_episodes),
+                                global_trials=args.global_trials, seed=args.seed)
+    standard = standard_policies(source, search, config.reward)
+    oracle = next(p for p in standard if isinstance(p, OraclePolicy) and p.name == "oracle")
+    start = time.perf_counter()
+    fitted = fit_baselines(train_env, oracle, settings, progress=True)
+    print(f"fitted global and amortised on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
+    policies = [*standard, *fitted, *learned]
+    start = time.perf_counter()
+    result = evaluate(test_env, policies, episodes, progress=True)
+    print(f"scored {len(policies) + 2} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
+    write_results_csv(out / "results.csv", result.rows)
+    title = f"{algo} vs baselines · {env_id} · backend {config.backend} · source {source}"
+    gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
+    otb_curves(out / "otb_curves.png", result.success, result.precision, title)
+    ex = result.example
+    trajectories(out / "trajectory.png", ex["truth"], ex["y"], {k: v for k, v in ex["estimates"].items()
+                 if k in ("rule", "oracle", "amortised", learned[0].name)}, f"{title}\ntest episode 0: " + ", ".join(
+                     f"{k} {v:.3g}" for k, v in ex["meta"].items() if isinstance(v, float)))
+    changed = sorted(k for k, v in env_kwargs.items() if k not in cfg["env_kwargs"] or cfg["env_kwargs"][k] != v)
+    other = "oracle_auc: the same search maximising success AUC" if config.reward == "rmse" else \
+        "oracle_rmse: the same search minimising RMSE"
+    settings_md = {"command": f"`{command}`",
+                   "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})"
+                            if len(runs) == 1 else ", ".join(f"`{r}`" for r in runs) + " (one per training seed)",
+                   "env": f"`{env_kwargs}`" + (f" (changed from the run's: {changed})" if changed else
+                                                " (the run's own)"),
+                   "test episodes": describe_episodes(args, source, episodes),
+                   "baselines fitted on": f"{args.train_episodes} train-split episodes of this env (seed {args.seed}); global: "
+                                          f"{args.global_trials} TPE trials on {settings.global_episodes} of them",
+                   "oracle": f"grid of <= {search.budget} actions, then {search.rounds} local refinements "
+                             f"({search.refine} points per dimension) maximising the env's reward ({config.reward}); "
+                             f"{other}; the rules' actions are candidates"}
+    attributes = ({name: test_env.unwrapped.source.dataset.sequence(name).attributes for name in
+                   {e.sequence for e in episodes}} if source in OTB_SOURCES else None)
+    summary = summary_markdown(result.rows, result.truth_at_test, learned=[p.name for p in learned], title=title,
+                               settings=settings_md, figures=["gain_boxplot.png", "otb_curves.png", "trajectory.png",
+                                                                 *(["performance_profile.png"] if groups else [])],
+                               n_boot=args.bootstrap, seed=args.seed,
+                               rmse_oracle="oracle" if config.reward == "rmse" else "oracle_rmse", attributes=attributes)
+    if groups:
+        scored = {r["method"] for r in result.rows}
+        references = {m: [m] for m in ("raw", "rule_est_sigma", "amortised", "oracle") if m in scored}
+        taus, curves = profile_curves(result.rows, {**groups, **references}, n_boot=args.bootstrap, seed=args.seed)
+        performance_profile(out / "performance_profile.png", taus, curves, title)
+        head, figures = summary.split("## Figures")
+        summary = head + seeds_section(result.rows, groups, n_boot=args.bootstrap, seed=args.seed,
+                                       reference=("raw", "rule", "oracle")) + "\n## Figures" + figures
+    write_text_atomic(out / "summary.md", summary)
+    print(summary.split("## Paired")[0])
+    print(f"wrote {out}")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line: :func:`run`; exit status 0 (a bad argument exits 2 with one line)."""
+    run(argv)
+    return 0
