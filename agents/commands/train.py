@@ -7,7 +7,7 @@
 
 Episodes: training draws the train split, the EvalCallback scores the val split (``agents.splits``: disjoint
 noise-seed sets; OTB sources also use the env's sequence splits). Observations are normalised by
-VecNormalize (obs only; the reward log(RMSE_rule/RMSE) is already scale-free). The run directory layout is in
+VecNormalize (obs only; the rewards, e.g. log(RMSE_rule/RMSE), are already scale-free). The run directory layout is in
 ``agents.runs``. Same seed → same result on the same machine (uninterrupted runs); a resumed run continues from
 its last checkpoint with reseeded envs (seed + timesteps done), so it does not replay earlier episodes.
 
@@ -59,8 +59,9 @@ from agents.runs import (CONFIG, ENV_ERRORS, RESUME_KEYS, RunLock, check_free, c
                          make_env, make_vec)
 from agents.safe_load import load_model, stamp
 from envs.data.atomic_files import atomic_write, write_text_atomic
-from envs.episodes.config import SOURCES
 from envs.data.otb import TRACKER_SPLIT
+from envs.episodes.config import SOURCES, EnvConfig
+from envs.episodes.scoring import reward_label
 
 DEFAULT_ENV = "bboxtune/FilterTune-v0"
 RESUME_FLAGS = {"--resume", "--timesteps", "--trust-pickle"}  # the only flags a resume takes: the rest is config.yml's
@@ -364,7 +365,9 @@ def train(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Check
     model.get_env().close()
     evaluation.eval_env.close()
     if len(evals):
-        print(f"val mean reward log(RMSE_rule/RMSE): last {evals[-1]:+.4f}, best {evals.max():+.4f}")
+        env_cfg = EnvConfig.from_kwargs(**cfg["env_kwargs"])
+        print(f"val mean reward ({reward_label(env_cfg.reward, env_cfg.reward_baseline)}): last {evals[-1]:+.4f}, "
+              f"best {evals.max():+.4f}")
     print(f"wrote {run_dir}")
     return run_dir
 

@@ -10,6 +10,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import envs
 import filters
+from envs.episodes.scoring import reward_label
 from tests.envs.conftest import OTB_ROOT, needs_otb
 
 SOURCES = ["sim", pytest.param("otb", marks=needs_otb), pytest.param("otb_tracker", marks=needs_otb)]
@@ -172,6 +173,11 @@ def test_a_raw_reward_baseline_measures_against_the_measurements_and_keeps_the_b
     _, r, *_, info = raw_env.step(actions[3].astype(np.float32))
     assert r == pytest.approx(by_raw["reward"][3])
     assert info[f"rule_{reward}"] == rule_info[f"rule_{reward}"]  # the info still reports the rule's scores
+
+
+def test_reward_labels_name_the_metric_and_the_reference() -> None:
+    assert reward_label("rmse") == "log(RMSE_rule/RMSE)" and reward_label("rmse", "raw") == "log(RMSE_raw/RMSE)"
+    assert reward_label("success_auc", "raw") == "success_auc minus the raw's"
 
 
 def test_a_raw_reward_baseline_is_refused_by_the_retune_env_and_others_everywhere() -> None:
