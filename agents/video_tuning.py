@@ -1,10 +1,12 @@
-"""Filter parameters for video episodes: the fixed rule, a grid-searched fixed action, or a trained tuner.
+"""Filter parameters for video episodes: the fixed rule (``ep.nominal.as_params()``), a grid-searched fixed action,
+or a trained tuner — policies of the one tuner hierarchy (:mod:`agents.baselines`) bound to a back end
+(:class:`EpisodeTuner`).
 
 Actions follow the env's mapping (:class:`envs.episodes.actions.ActionMap`, default ``tune`` of the back end), so
 a tuned action means the same thing relative to every episode's nominal σ as it does in the env.
 
 * :func:`grid_tune` — one action for a whole video set: the point of a regular grid over [-1, 1]^d with the
-  best mean score over *training* episodes (no test data); saved/loaded as JSON (:class:`FixedTuner`).
+  best mean score over *training* episodes (no test data); saved/loaded as JSON (:meth:`EpisodeTuner.document`).
 * :func:`load_tuner` — a ``tuned.json`` from :func:`grid_tune` or a ``scripts/train.py`` run directory
   (``config.yml`` + ``model.zip`` [+ ``vecnormalize.json``], loaded by ``agents.runs.SB3Policy``): the policy
   sees the env's observation features of each episode (:func:`envs.episodes.features.measurement_features`) and its
@@ -16,20 +18,21 @@ from __future__ import annotations
 import itertools
 import json
 import os
-from abc import ABC, abstractmethod
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from agents.baselines import GlobalPolicy, ObsPolicy
 from agents.runs import SB3Policy, load_config
 from envs.data import textfile
-from envs.episodes.config import EnvConfig
 from envs.episodes.actions import DEFAULT_TUNE, K_AXIS, ActionMap
+from envs.episodes.config import EnvConfig
+from envs.episodes.episode import Episode
 from envs.episodes.features import measurement_features
 from envs.episodes.scoring import run_positions, score_estimates
-from envs.episodes.episode import Episode
 
 
 def action_map(backend: str, tune: Sequence[str] | None = None, horizon_max: int = 400,
@@ -39,66 +42,45 @@ def action_map(backend: str, tune: Sequence[str] | None = None, horizon_max: int
                      sigma_decades=sigma_decades)
 
 
-def rule_params(ep: Episode) -> dict[str, np.ndarray]:
-    """The fixed rule's parameters of an episode, as arrays (1,)."""
-    n = ep.nominal
-    return {"psi": np.array([n.psi]), "horizon": np.array([n.horizon]), "sigma_w": np.array([n.sigma_w]),
-            "sigma_v": np.array([n.sigma_v])}
+@dataclass(frozen=True)
+class EpisodeTuner:
+    """A policy of the baselines' hierarchy bound to a back end and its action map, acting on video episodes: a
+    fixed action (:class:`agents.baselines.GlobalPolicy`, e.g. from :func:`grid_tune`) or a trained model
+    (:class:`agents.runs.SB3Policy`). It sees what the env shows the agent: the observation features of the
+    episode's measurements (:func:`envs.episodes.features.measurement_features`, with the fixed rule's run)."""
 
-
-class Tuner(ABC):
-    """Chooses an action per episode for ``backend``."""
-
+    policy: ObsPolicy
     backend: str
     actions: ActionMap
 
-    @abstractmethod
     def act(self, ep: Episode) -> np.ndarray:
         """Action (d,) in [-1, 1] for episode ``ep``."""
+        rule = run_positions(self.backend, ep.y, ep.tau, ep.nominal.as_params())[0]
+        obs = measurement_features(ep.y, ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, rule)
+        return self.actions.check(self.policy.predict(obs[None]))[0]
 
     def params(self, ep: Episode) -> dict[str, np.ndarray]:
         """Physical parameters (arrays (1,)) for ``ep``."""
         return self.actions.to_params(self.act(ep), ep.nominal)
 
-
-class FixedTuner(Tuner):
-    """The same action for every episode (e.g. from :func:`grid_tune`)."""
-
-    def __init__(self, backend: str, action: np.ndarray, actions: ActionMap | None = None) -> None:
-        self.backend = backend
-        self.actions = actions or action_map(backend)
-        self.action = self.actions.check(action)[0]
-
-    def act(self, ep: Episode) -> np.ndarray:
-        return self.action
-
     def document(self, **info: Any) -> dict[str, Any]:
-        """``{"backend", "tune", "horizon_max", "sigma_decades", "action", **info}``: what :meth:`save` writes."""
+        """A fixed tuner as the JSON object :func:`load_tuner` reads: ``{"backend", "tune", "horizon_max",
+        "sigma_decades", "action", **info}``."""
+        if not isinstance(self.policy, GlobalPolicy):
+            raise TypeError(f"only a fixed action (GlobalPolicy) is saved as tuned.json, not a {type(self.policy).__name__}")
         a = self.actions
         return {"backend": self.backend, "tune": list(a.tune), "horizon_max": a.horizon_max,
-                "sigma_decades": a.sigma_decades, "action": self.action.tolist(), **info}
-
-    def save(self, path: str | os.PathLike, **info: Any) -> None:
-        """Write :meth:`document` as JSON (readable by :func:`load_tuner`)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.document(**info), indent=2))
+                "sigma_decades": a.sigma_decades, "action": self.policy.action.tolist(), **info}
 
 
-class PolicyTuner(Tuner):
-    """A trained tuner (``agents.runs.SB3Policy``) acting on the env's observation features."""
-
-    def __init__(self, policy: Any, backend: str, actions: ActionMap) -> None:
-        self.policy, self.backend, self.actions = policy, backend, actions
-
-    def act(self, ep: Episode) -> np.ndarray:
-        rule = run_positions(self.backend, ep.y, ep.tau, rule_params(ep))[0]
-        obs = measurement_features(ep.y, ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, rule)
-        return self.actions.check(self.policy.predict(obs[None]))[0]
+def fixed_tuner(backend: str, action: np.ndarray, actions: ActionMap | None = None) -> EpisodeTuner:
+    """The same action (d,) for every episode of ``backend`` (checked to lie in [-1, 1])."""
+    amap = actions or action_map(backend)
+    return EpisodeTuner(GlobalPolicy(amap.check(action)[0]), backend, amap)
 
 
 def grid_tune(episodes: Sequence[Episode], backend: str, points: int = 9, metric: str = "success_auc",
-              actions: ActionMap | None = None) -> tuple[FixedTuner, float]:
+              actions: ActionMap | None = None) -> tuple[EpisodeTuner, float]:
     """The grid action (``points`` per tuned dimension, [-1, 1]) with the best mean ``metric`` over
     ``episodes`` (``"rmse"``: lowest mean log RMSE; any other score key of :func:`envs.episodes.scoring.score_estimates`:
     highest mean). Returns the tuner and its mean score."""
@@ -112,12 +94,12 @@ def grid_tune(episodes: Sequence[Episode], backend: str, points: int = 9, metric
         scores = score_estimates(est, ep.truth)
         total += -np.log(scores["rmse"]) if metric == "rmse" else np.nan_to_num(scores[metric])
     best = int(np.argmax(total))
-    return FixedTuner(backend, grid[best], amap), float(total[best] / max(len(episodes), 1))
+    return fixed_tuner(backend, grid[best], amap), float(total[best] / max(len(episodes), 1))
 
 
-def load_tuner(path: str | os.PathLike, *, trust_pickle: bool = False) -> Tuner:
-    """A :class:`FixedTuner` from a JSON file (or a folder holding ``tuned.json``), or a
-    :class:`PolicyTuner` from a ``scripts/train.py`` run directory (has ``config.yml``; loaded without
+def load_tuner(path: str | os.PathLike, *, trust_pickle: bool = False) -> EpisodeTuner:
+    """A fixed tuner from a JSON file (or a folder holding ``tuned.json``; :meth:`EpisodeTuner.document`), or a
+    trained one from a ``scripts/train.py`` run directory (has ``config.yml``; loaded without
     unpickling, ``trust_pickle`` as in ``agents.runs.SB3Policy.load``). ValueError naming the file otherwise."""
     path = Path(path)
     if path.is_dir() and (path / "config.yml").is_file():
@@ -127,7 +109,7 @@ def load_tuner(path: str | os.PathLike, *, trust_pickle: bool = False) -> Tuner:
         except (TypeError, ValueError) as err:
             raise ValueError(f"{path / 'config.yml'}: env_kwargs: {err}") from None
         amap = action_map(cfg.backend, cfg.tune, cfg.horizon_max, cfg.sigma_decades)
-        return PolicyTuner(SB3Policy.load(path, trust_pickle=trust_pickle), cfg.backend, amap)
+        return EpisodeTuner(SB3Policy.load(path, trust_pickle=trust_pickle), cfg.backend, amap)
     file = path / "tuned.json" if path.is_dir() else path
     if not file.is_file():
         raise ValueError(f"--tuned {path}: neither a train.py run directory (config.yml) nor a tuned.json file")
@@ -143,7 +125,7 @@ def load_tuner(path: str | os.PathLike, *, trust_pickle: bool = False) -> Tuner:
         raise ValueError(f"{file}: backend={doc['backend']!r}; allowed: {sorted(DEFAULT_TUNE)}")
     try:
         amap = action_map(doc["backend"], doc["tune"], doc["horizon_max"], doc["sigma_decades"])
-        return FixedTuner(doc["backend"], np.asarray(doc["action"], dtype=float), amap)
+        return fixed_tuner(doc["backend"], np.asarray(doc["action"], dtype=float), amap)
     except KeyError as err:
         raise ValueError(f"{file}: missing key {err}; a tuned.json has backend, tune, horizon_max, "
                          "sigma_decades, action") from None

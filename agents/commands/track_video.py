@@ -51,7 +51,7 @@ from envs.video.detectors import DETECTORS, make_detector
 from envs.video.frames import otb_frames, video_file
 from envs.episodes.video_source import VideoSettings, VideoSource
 from envs.video.synthetic import VideoRanges, synthetic_video
-from agents.video_tuning import load_tuner, rule_params
+from agents.video_tuning import load_tuner
 
 _GREEN, _RED, _BLUE = (40, 170, 40), (40, 40, 220), (230, 80, 40)  # BGR
 
@@ -161,7 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     truth = gt[:T] if gt is not None else np.full((T, 4), np.nan)
     source = VideoSource(EnvConfig(track_length=max(T, 8)), VideoSettings(detector=args.detector))
     ep = source.episode({"truth": truth, "y": y_xywh, "tau": np.float64(1.0 / fps)}, meta={"sequence": name})
-    params = tuner.params(ep) if tuner else rule_params(ep)
+    params = tuner.params(ep) if tuner else ep.nominal.as_params()
     used = {k: (int(params[k][0]) if k == "horizon" else float(params[k][0])) for k in ACCEPTS[backend]}
     if shift is not None:
         states = run_compensated(backend, ep.y, shift, ep.tau, **used)

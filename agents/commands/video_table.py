@@ -36,7 +36,7 @@ from envs.episodes.config import TRACK_LENGTH_MAX, EnvConfig
 from envs.episodes.scoring import run_positions, score_estimates
 from envs.video.detectors import DETECTORS
 from envs.episodes.video_source import VideoSettings, VideoSource
-from agents.video_tuning import Tuner, action_map, grid_tune, load_tuner, rule_params
+from agents.video_tuning import EpisodeTuner, action_map, grid_tune, load_tuner
 
 METHODS = ("raw", "rule", "tuned")
 MAX_VIDEOS = 1_000_000  # videos per split (envs.episodes.video_source.VideoSettings.video_pool)
@@ -67,7 +67,7 @@ def build_parser() -> ArgumentParser:
     return p
 
 
-def parse_args(argv: list[str] | None = None) -> tuple[argparse.Namespace, Tuner | None]:
+def parse_args(argv: list[str] | None = None) -> tuple[argparse.Namespace, EpisodeTuner | None]:
     """The checked command line and the ``--tuned`` tuner (None: grid search); exit 2 with one line on misuse."""
     p = build_parser()
     args = p.parse_args(argv)
@@ -133,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
                     detector=detector, train_success_auc=train_auc, train_videos=[ep.meta["sequence"] for ep in train]))
             auc = {m: [] for m in METHODS}
             for ep, raw_scores in zip(test, raw):
-                for method, params in (("rule", rule_params(ep)), ("tuned", tuner.params(ep))):
+                for method, params in (("rule", ep.nominal.as_params()), ("tuned", tuner.params(ep))):
                     est = run_positions(backend, ep.y, ep.tau, params)
                     scores = score_estimates(est, ep.truth)
                     auc[method].append(float(scores["success_auc"][0]))

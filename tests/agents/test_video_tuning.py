@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import itertools
+import json
 
 import numpy as np
 import pytest
 
+from agents.baselines import GlobalPolicy
+from agents.video_tuning import EpisodeTuner, action_map, fixed_tuner, grid_tune, load_tuner
 from envs.episodes.config import EnvConfig
 from envs.episodes.scoring import run_positions, score_estimates
 from envs.episodes.video_source import VideoSettings, VideoSource
-from agents.video_tuning import FixedTuner, PolicyTuner, action_map, grid_tune, load_tuner, rule_params
 
 
 @pytest.fixture(scope="module")
@@ -31,13 +33,14 @@ def test_grid_tune_returns_the_best_grid_point(episodes):
     grid = list(itertools.product([-1.0, 0.0, 1.0], repeat=2))
     brute = [mean_auc(episodes, "kf", np.array(a)) for a in grid]
     assert best == pytest.approx(max(brute))
-    assert mean_auc(episodes, "kf", tuner.action) == pytest.approx(max(brute))
-    assert tuner.action.tolist() in [list(a) for a, s in zip(grid, brute) if s == max(brute)]
+    assert isinstance(tuner.policy, GlobalPolicy)  # one tuner hierarchy: the fixed action is the baselines' global
+    assert mean_auc(episodes, "kf", tuner.policy.action) == pytest.approx(max(brute))
+    assert tuner.policy.action.tolist() in [list(a) for a, s in zip(grid, brute) if s == max(brute)]
 
 
 def test_tuned_json_round_trip(tmp_path, episodes):
-    tuner = FixedTuner("ufir_cmn", np.array([0.5, -0.25]))
-    tuner.save(tmp_path / "tuned.json", detector="regions")
+    tuner = fixed_tuner("ufir_cmn", np.array([0.5, -0.25]))
+    (tmp_path / "tuned.json").write_text(json.dumps(tuner.document(detector="regions")))
     loaded = load_tuner(tmp_path)  # a folder holding tuned.json
     assert loaded.backend == "ufir_cmn" and loaded.actions.tune == ("psi", "horizon")
     for key, value in tuner.params(episodes[0]).items():
@@ -52,11 +55,12 @@ def test_policy_tuner_feeds_env_features_to_the_policy(episodes):
             Zero.seen = obs
             return np.zeros((len(obs), 2))
 
-    tuner = PolicyTuner(Zero(), "kf", action_map("kf"))
+    tuner = EpisodeTuner(Zero(), "kf", action_map("kf"))
     params = tuner.params(episodes[0])
     assert Zero.seen.shape == (1, 20) and np.all(np.isfinite(Zero.seen))
     np.testing.assert_allclose(params["sigma_w"], episodes[0].nominal.sigma_w)  # action 0 = nominal σ
-    assert rule_params(episodes[0])["horizon"][0] == episodes[0].nominal.horizon
+    with pytest.raises(TypeError, match="only a fixed action"):
+        tuner.document()
 
 
 def test_load_tuner_rejects_other_paths(tmp_path):

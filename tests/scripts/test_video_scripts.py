@@ -12,7 +12,7 @@ import pytest
 
 from agents.commands import track_video, video_camera, video_table
 from envs.video.synthetic import VideoScenario, render
-from agents.video_tuning import FixedTuner
+from agents.video_tuning import fixed_tuner
 
 from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
 from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
@@ -123,7 +123,7 @@ def test_video_table_misuse(case, misuse_paths, capsys):
 
 def test_video_table_tuned_backend_conflict(misuse_paths, capsys):
     tuned = misuse_paths.root / "tuned.json"
-    FixedTuner("kf", np.zeros(2)).save(tuned)  # a grid-searched kf action
+    tuned.write_text(json.dumps(fixed_tuner("kf", np.zeros(2)).document()))  # a grid-searched kf action
     check_misuse(video_table.main, misuse("--tuned", str(tuned), "--backends", "ufir_cmn"),
                  misuse_paths, capsys)
 
