@@ -71,7 +71,8 @@ class FilterTuneEnv(TrackEnv):
 
     ## Starting State
     ``reset`` draws an episode: for ``sim`` a scenario (ψ ~ U(psi_range), σ_w, σ_ξ log-uniform over their
-    ranges, τ ~ U(tau_range)) and its noise; for OTB sources a sequence of ``split`` (and for ``otb`` the
+    ranges, τ ~ U(tau_range)) and its noise (``sim_noise="box"``: the ``otb`` source's box-relative CMN on the
+    simulated truth, σ_rel log-uniform over ``cmn_rel_range``, with the OTB sources' nominal σ); for OTB sources a sequence of ``split`` (and for ``otb`` the
     CMN level and ψ; for ``otb_tracker`` first the tracker, uniformly from ``trackers``, then a sequence it
     has output for); for ``mix`` first the part (sim / otb / otb_tracker, probabilities ∝ ``mix_weights``),
     then that part's episode of the same noise seed. ``reset(options={"sequence": name, "noise_seed": s,
@@ -169,7 +170,8 @@ class FilterTuneEnv(TrackEnv):
       registered ``vector_entry_point`` :class:`envs.vector.TuneVectorEnv` (``gym.make_vec`` /
       ``envs.make_vec``: n tracks per step in one batch); the fixed rule of ``kf`` / ``kf_cmn`` runs in frame
       units, so a block of tracks with different τ shares one filter call.
-    * v0, ``reward_baseline`` (default ``"rule"``: no change to any reward).
+    * v0, ``reward_baseline`` (default ``"rule"``: no change to any reward) and ``sim_noise`` (default
+      ``"absolute"``: no change to any episode).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

@@ -142,6 +142,10 @@ class EnvConfig:
     # sim "stationary": one ψ, σ_w, σ_ξ per track | "nonstationary": regime switches of ψ and σ_ξ, manoeuvre bursts
     # and occlusion gaps within a track (envs.data.sim_regimes, documented with its ranges); sim / mix with motion "cv"
     scenario: str = "stationary"
+    # sim measurement noise: "absolute" (CMN of σ_ξ px from sigma_xi_range added to the boxes; nominal σ the centres
+    # of the σ ranges) | "box" (the "otb" source's noise on the simulated truth: box-relative CMN, σ_rel from
+    # cmn_rel_range; nominal σ = otb_sigma_v_rel / otb_sigma_w_rel × the measured box scale); sim / mix, stationary
+    sim_noise: str = "absolute"
     # OTB sources
     otb_root: str | None = None  # folder of the OTB data; None -> $OTB_ROOT
     split: str = "train"  # "train" | "val" | "test": which sequences episodes are drawn from
@@ -183,6 +187,10 @@ class EnvConfig:
         put("motion", check_choice("motion", self.motion, ("cv", "otb")))
         put("scenario", check_choice("scenario", self.scenario, SCENARIOS))
         put("retune_reward", check_choice("retune_reward", self.retune_reward, ("track", "window")))
+        put("sim_noise", check_choice("sim_noise", self.sim_noise, ("absolute", "box")))
+        if self.sim_noise == "box" and (self.source not in ("sim", "mix") or self.scenario != "stationary"):
+            raise ValueError(f"sim_noise='box' with source={self.source!r}, scenario={self.scenario!r}: allowed only "
+                             "with source 'sim' or 'mix' (its sim part) and scenario 'stationary'")
         if self.scenario == "nonstationary" and (self.source not in ("sim", "mix") or self.motion != "cv"):
             raise ValueError(f"scenario='nonstationary' with source={self.source!r}, motion={self.motion!r}: allowed "
                              "only with source 'sim' or 'mix' (its sim part) and motion 'cv'")

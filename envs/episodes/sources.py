@@ -26,9 +26,10 @@ from typing import Any
 
 import numpy as np
 
+from envs.data.boxes import cxcywh_to_xywh
 from envs.data.otb import OTBDataset, replay_synthetic, replay_tracker, split
 from envs.data.sim_regimes import simulate_nonstationary
-from envs.data.simulate import Scenario, ScenarioRanges, simulate_each
+from envs.data.simulate import Scenario, ScenarioRanges, Track, simulate_each
 from envs.episodes.actions import K_AXIS, Nominal
 from envs.episodes.config import MIX_SOURCES, EnvConfig
 from envs.episodes.episode import Episode, Source, rule_nominal
@@ -85,9 +86,25 @@ class SimSource(Source):
                              velocity_rms=scenario.velocity_rms, size_rw=scenario.size_rw)
             nominal = Nominal(sigma_w=self.sigma_w_nominal, sigma_v=self.sigma_v_nominal, psi=self.cfg.nominal_psi,
                               horizon=horizon)
-            episodes.append(Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta,
-                                    scenario=truth))
+            y = track.y
+            if self.cfg.sim_noise == "box":
+                y, nominal = self._box_noise(seed, scenario.psi, track, truth)
+            episodes.append(Episode(truth=track.truth, y=y, tau=track.tau, nominal=nominal, meta=meta, scenario=truth))
         return episodes
+
+    def _box_noise(self, seed: int, psi: float, track: Track, truth: dict[str, Any]) -> tuple[np.ndarray, Nominal]:
+        """``sim_noise="box"``: the measurements (T, 4) of the simulated truth, taken as the "otb" source measures
+        OTB ground truth (:func:`envs.data.otb.replay_synthetic`: CMN of ψ and a σ_rel log-uniform in ``cmn_rel_range``, from
+        ``default_rng((seed, 1))``, scaled by the true box), with the OTB sources' nominal σ; ``truth`` gains
+        ``sigma_rel`` (its ``sigma_xi`` is then the unused absolute draw's, removed)."""
+        rng = np.random.default_rng((seed, 1))
+        sigma_rel = _log_uniform(rng, self.cfg.cmn_rel_range)
+        measured = replay_synthetic(cxcywh_to_xywh(track.truth), psi=psi, sigma_rel=sigma_rel, rng=rng, tau=track.tau)
+        truth.pop("sigma_xi")
+        truth.update(sigma_rel=sigma_rel, noise="box")
+        scale = box_scale(measured.y)
+        return measured.y, rule_nominal(self.cfg, self.cfg.otb_sigma_v_rel * scale, self.cfg.otb_sigma_w_rel * scale,
+                                      measured.tau)
 
     def _nonstationary(self, seed: int, scenario: Scenario) -> Episode:
         """The nonstationary episode of ``seed`` around its drawn ``scenario`` (:mod:`envs.data.sim_regimes`)."""
