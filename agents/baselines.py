@@ -34,8 +34,8 @@ from tqdm import tqdm
 
 from agents.episodes import EpisodeBank, ScoreFn, nominal_action
 from envs.episodes.actions import ActionMap, Nominal
-from envs.episodes.features import estimate_sigmas
 from envs.episodes.episode import Episode
+from envs.episodes.features import estimate_sigmas
 from filters.horizon import rule_horizon
 
 CMN_BACKENDS = frozenset({"kf_cmn", "ufir_cmn"})  # back ends whose sigma_v is σ_ξ of the CMN

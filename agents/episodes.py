@@ -18,8 +18,8 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.episodes.actions import ActionMap, Nominal
-from envs.episodes.scoring import reference_scores, reward_from, run_positions, score_estimates
 from envs.episodes.episode import Episode
+from envs.episodes.scoring import reference_scores, reward_from, run_positions, score_estimates
 
 ScoreFn = Callable[[np.ndarray], dict[str, np.ndarray]]  # actions (A, d) -> {"reward": (A,), "rmse": (A,), ...}
 

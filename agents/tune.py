@@ -46,15 +46,15 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from agents import pretrained
-from envs.episodes.actions import ACCEPTS, ActionMap, Nominal
 from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from envs.episodes.actions import ACCEPTS, ActionMap, Nominal
 from envs.episodes.config import EnvConfig, check_real
+from envs.episodes.episode import Episode
+from envs.episodes.episode import rule_nominal as source_nominal  # the sources' own rule for given σ
 from envs.episodes.features import box_scale, measurement_features
 from envs.episodes.scoring import run_positions, run_tracks
-from envs.episodes.episode import Episode
 from envs.episodes.sources import SimSource
 from envs.episodes.video_source import VideoSettings
-from envs.episodes.episode import rule_nominal as source_nominal  # the sources' own rule for given σ
 from envs.track_env import TrackEnv
 
 if TYPE_CHECKING:

@@ -18,10 +18,10 @@ import numpy as np
 
 from envs.episodes.actions import ACCEPTS, K_AXIS, ActionMap
 from envs.episodes.config import EnvConfig
-from envs.render import draw_episode
 from envs.episodes.episode import Episode
 from envs.episodes.features import FEATURE_NAMES
 from envs.episodes.sources import make_source
+from envs.render import draw_episode
 
 RESET_OPTIONS = ("sequence", "noise_seed", "tracker")
 

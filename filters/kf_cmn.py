@@ -45,9 +45,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from filters.base import AxisCarry, Filter
-from filters.model import StateSpaceModel
 from filters.kalman_core import (UPDATE_Z, FramePrior, StepTables, channel_start, check_prior, filter_channels,
                                  frame_kinds, plain_tables)
+from filters.model import StateSpaceModel
 from filters.validation import check_sigma, check_psi
 
 

@@ -33,8 +33,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from filters.fir_core import FIRFilter, check_fir_params
-from filters.model import constant_velocity, matrix_powers
 from filters.lag_moments import lag_moments, lag_moments_real, lag_polynomial, linear_product
+from filters.model import constant_velocity, matrix_powers
 
 
 class UFIR(FIRFilter):

@@ -34,9 +34,9 @@ from agents.cli import ArgumentParser, HelpFormatter, argument_errors, existing_
 from agents.commands.otb_eval import evaluate
 from agents.tune import DEFAULT_PRETRAINED, TAU_RANGE, Tuner, check_boxes, load_pretrained
 from agents.video_tables import csv_text, folder_in_use, publish_folder
-from envs.episodes.actions import ACCEPTS
 from envs.data.otb import OTBDataset
 from envs.data.otb_io import read_boxes
+from envs.episodes.actions import ACCEPTS
 
 
 def build_parser() -> ArgumentParser:

@@ -40,18 +40,18 @@ from agents.cli import (ArgumentParser, box_xywh, existing_dir, existing_file, i
 from agents.run_files import RunError
 from agents.runs import check_free
 from agents.video_tables import write_csv, write_json
+from agents.video_tuning import load_tuner
 from envs.data import metrics
-from envs.episodes.actions import ACCEPTS
 from envs.data.atomic_files import atomic_write
 from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from envs.episodes.actions import ACCEPTS
 from envs.episodes.config import EnvConfig
+from envs.episodes.video_source import VideoSettings, VideoSource
 from envs.video.camera import frame_shift, run_compensated
 from envs.video.detector import to_gray
 from envs.video.detectors import DETECTORS, make_detector
 from envs.video.frames import otb_frames, video_file
-from envs.episodes.video_source import VideoSettings, VideoSource
 from envs.video.synthetic import VideoRanges, synthetic_video
-from agents.video_tuning import load_tuner
 
 _GREEN, _RED, _BLUE = (40, 170, 40), (40, 40, 220), (230, 80, 40)  # BGR
 

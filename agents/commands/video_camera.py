@@ -38,9 +38,9 @@ from agents.stats import paired_mean_ci  # noqa: E402
 from agents.video_tables import write_csv, write_json  # noqa: E402
 from envs.data.atomic_files import atomic_write  # noqa: E402
 from envs.episodes.config import EnvConfig  # noqa: E402
+from envs.episodes.video_source import VideoSettings, VideoSource  # noqa: E402
 from envs.video.camera import UKF_CAMERA, background_shift, run_compensated  # noqa: E402
 from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
-from envs.episodes.video_source import VideoSettings, VideoSource  # noqa: E402
 from envs.video.synthetic import VideoRanges, synthetic_video  # noqa: E402
 
 SEED_OFFSET = 3_000_000

@@ -32,11 +32,11 @@ from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, int_rang
                         out_dir)
 from agents.stats import paired_mean_ci
 from agents.video_tables import csv_text, folder_in_use, json_text, publish_folder
+from agents.video_tuning import EpisodeTuner, action_map, grid_tune, load_tuner
 from envs.episodes.config import TRACK_LENGTH_MAX, EnvConfig
 from envs.episodes.scoring import run_positions, score_estimates
-from envs.video.detectors import DETECTORS
 from envs.episodes.video_source import VideoSettings, VideoSource
-from agents.video_tuning import EpisodeTuner, action_map, grid_tune, load_tuner
+from envs.video.detectors import DETECTORS
 
 METHODS = ("raw", "rule", "tuned")
 MAX_VIDEOS = 1_000_000  # videos per split (envs.episodes.video_source.VideoSettings.video_pool)

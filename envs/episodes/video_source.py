@@ -33,10 +33,10 @@ from typing import Any
 import numpy as np
 
 from envs.data.atomic_files import atomic_write
-from envs.episodes.actions import Nominal
 from envs.data.boxes import xywh_to_cxcywh
-from envs.episodes.features import box_scale
+from envs.episodes.actions import Nominal
 from envs.episodes.episode import Episode, Source
+from envs.episodes.features import box_scale
 from envs.video.detectors import DETECTORS, detect_video, make_detector
 from envs.video.synthetic import VideoRanges, synthetic_video
 

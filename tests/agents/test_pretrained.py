@@ -12,8 +12,8 @@ import gymnasium as gym
 import pytest
 
 from agents import pretrained
-from agents.tune import load_pretrained
 from agents.runs import load_config
+from agents.tune import load_pretrained
 
 REPO = Path(__file__).resolve().parents[2]
 SHIPPED = pretrained.available()

@@ -14,8 +14,8 @@ import pytest
 
 import agents
 from agents import pretrained
-from agents.tune import load_pretrained
 from agents.run_files import RunError
+from agents.tune import load_pretrained
 from envs.data.boxes import cxcywh_to_xywh
 
 tune_module = sys.modules["agents.tune"]  # ``agents.tune`` is the function

@@ -8,8 +8,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from envs.episodes.config import MIX_SOURCES, EnvConfig
 from envs.data.otb import TRACKER_SPLIT, OTBDataset, split
+from envs.episodes.config import MIX_SOURCES, EnvConfig
 from tests.envs.conftest import OTB_ROOT, needs_otb
 
 TUNE, RETUNE = "bboxtune/FilterTune-v0", "bboxtune/FilterRetune-v0"

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from agents.commands import track_video, video_camera, video_table
-from envs.video.synthetic import VideoScenario, render
 from agents.video_tuning import fixed_tuner
+from envs.video.synthetic import VideoScenario, render
 
 from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
 from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)

@@ -20,8 +20,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.data.otb import OTBDataset
 from envs.data.number_grammar import parse_float, parse_int
+from envs.data.otb import OTBDataset
 from envs.data.otb_io import MAX_LINE_CHARS, parse_boxes
 
 REPO = Path(__file__).resolve().parents[3]

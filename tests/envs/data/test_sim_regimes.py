@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the ids)
-from envs.episodes.config import EnvConfig
 from envs.data.sim_regimes import REGIMES, simulate_nonstationary
 from envs.data.simulate import Scenario
+from envs.episodes.config import EnvConfig
 
 TUNE, RETUNE = "bboxtune/FilterTune-v0", "bboxtune/FilterRetune-v0"
 

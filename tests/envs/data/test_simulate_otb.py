@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from envs.episodes.config import EnvConfig
 from envs.data.sim_motion import OTB_MOTION, OTBMotion
 from envs.data.simulate import Scenario, ScenarioRanges, simulate, simulate_each
+from envs.episodes.config import EnvConfig
 from envs.episodes.sources import SimSource
 
 

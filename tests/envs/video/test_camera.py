@@ -7,9 +7,9 @@ import pytest
 
 import filters
 from envs.data.boxes import xywh_to_cxcywh
+from envs.episodes.video_source import NOMINAL_REL
 from envs.video.camera import background_shift, background_velocity, camera_offset, run_compensated
 from envs.video.detectors import detect_video, make_detector
-from envs.episodes.video_source import NOMINAL_REL
 from envs.video.synthetic import VideoRanges, synthetic_video
 
 TAU = 1 / 30
