@@ -1,10 +1,11 @@
 """Batch runners: one back end over many tracks, each with its own parameter set and frame interval, in as few
 filter calls as the tracks allow.
 
-Frame units are handled here and only here: a back end exact in frame units (``IN_FRAMES``: the FIR family, KF,
-KF-CMN) runs every track at τ = 1 with its parameters converted (:meth:`filters.base.Filter.params_in_frames`:
-σ_w → σ_w τ², a prior's velocities × τ), so tracks of any τ share one cached model and one call; the others
-(UKF) run at each track's τ. Position estimates are the same either way (to round-off; tests/filters/
+Batching across frame intervals happens here: a back end exact in frame units (``IN_FRAMES``: the FIR family, KF,
+KF-CMN) runs every track at τ = 1 with its parameters converted (:meth:`filters.base.Filter.params_in_frames`, the
+one definition of the conversion: σ_w → σ_w τ², a prior's velocities × τ), so tracks of any τ share one cached
+model and one call; the others (UKF) run at each track's τ. (A FIR filter built at another τ applies the same
+conversion inside, so that its gains are cached once for all τ.) Position estimates are the same either way (to round-off; tests/filters/
 test_batch.py). Models are the constant-velocity models of :func:`filters.constant_velocity`, cached.
 """
 
