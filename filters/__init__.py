@@ -14,7 +14,7 @@ import os
 from threadpoolctl import threadpool_limits
 
 from filters.base import Filter
-from filters.batch import candidate_positions, cv_model, track_positions
+from filters.batch import candidate_positions, track_positions
 from filters.horizon import n_opt, rule_horizon
 from filters.model import StateSpaceModel, constant_velocity
 from filters.registry import NAMES, filter_class, make
@@ -25,5 +25,5 @@ from filters.registry import NAMES, filter_class, make
 # $BBOXTUNE_BLAS_THREADS threads (default 1); set it to another number to change that.
 threadpool_limits(limits=int(os.environ.get("BBOXTUNE_BLAS_THREADS", "1")), user_api="blas")
 
-__all__ = ["NAMES", "Filter", "StateSpaceModel", "candidate_positions", "constant_velocity", "cv_model", "filter_class",
-           "make", "n_opt", "rule_horizon", "track_positions"]
+__all__ = ["NAMES", "Filter", "StateSpaceModel", "candidate_positions", "constant_velocity", "filter_class", "make",
+           "n_opt", "rule_horizon", "track_positions"]

@@ -6,26 +6,18 @@ KF-CMN) runs every track at τ = 1 with its parameters converted (:meth:`filters
 one definition of the conversion: σ_w → σ_w τ², a prior's velocities × τ), so tracks of any τ share one cached
 model and one call; the others (UKF) run at each track's τ. (A FIR filter built at another τ applies the same
 conversion inside, so that its gains are cached once for all τ.) Position estimates are the same either way (to round-off; tests/filters/
-test_batch.py). Models are the constant-velocity models of :func:`filters.constant_velocity`, cached.
+test_batch.py). Models are the constant-velocity models of :func:`filters.constant_velocity` (cached there).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from functools import lru_cache
 
 import numpy as np
 
 from filters.base import Filter
-from filters.model import StateSpaceModel, constant_velocity
+from filters.model import constant_velocity
 from filters.registry import filter_class
-
-
-@lru_cache(maxsize=64)
-def cv_model(tau: float, ndim: int) -> StateSpaceModel:
-    """The constant-velocity model of ``ndim`` coordinates at frame interval ``tau`` (s), cached (models are
-    immutable)."""
-    return constant_velocity(tau, ndim=ndim)
 
 
 def _run_intervals(cls: type[Filter], taus: np.ndarray, params: dict[str, np.ndarray]
@@ -43,7 +35,7 @@ def candidate_positions(name: str, y: np.ndarray, tau: float, params: dict[str, 
     cls = filter_class(name)
     n = len(next(iter(params.values())))
     tau_run, used = _run_intervals(cls, np.float64(tau), params)
-    flt = cls(cv_model(float(tau_run), y.shape[-1]), **used)
+    flt = cls(constant_velocity(float(tau_run), ndim=y.shape[-1]), **used)
     return flt.positions(np.broadcast_to(y, (n, *y.shape)))
 
 
@@ -59,7 +51,7 @@ def track_positions(name: str, ys: Sequence[np.ndarray], taus: Sequence[float],
     out: list[np.ndarray] = [np.empty(0)] * len(ys)
     for T, tau in sorted(set(zip(lengths.tolist(), taus_run.tolist()))):
         rows = np.flatnonzero((lengths == T) & (taus_run == tau))
-        flt = cls(cv_model(tau, ys[rows[0]].shape[-1]), **{k: v[rows] for k, v in used.items()})
+        flt = cls(constant_velocity(tau, ndim=ys[rows[0]].shape[-1]), **{k: v[rows] for k, v in used.items()})
         est = flt.positions(np.stack([ys[r] for r in rows]))
         for i, r in enumerate(rows):
             out[r] = est[i]

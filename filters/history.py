@@ -22,16 +22,19 @@ import numpy as np
 
 @dataclass(frozen=True, eq=False)
 class History:
-    """The measurements (B, H, M) a FIR run has seen so far (NaN = missing), read-only; H = 0 before the first
-    frame. Like :class:`~filters.base.Carry` it can be sliced per track and repeated for candidates."""
+    """The measurements (B, H, M) a FIR run has seen so far (NaN = missing), read-only (a writeable array is
+    copied, a read-only one kept as it is); H = 0 before the first frame. Like :class:`~filters.base.Carry` it can be sliced per track and repeated
+    for candidates."""
 
     y: np.ndarray
 
     def __post_init__(self) -> None:
-        arr = np.array(self.y, dtype=float)
+        arr = np.asarray(self.y, dtype=float)
         if arr.ndim != 3:
             raise ValueError(f"History.y has shape {arr.shape}; allowed (B, H, M)")
-        arr.setflags(write=False)
+        if arr.flags.writeable:
+            arr = arr.copy()
+            arr.setflags(write=False)
         object.__setattr__(self, "y", arr)
 
     def slice(self, rows: slice) -> History:
@@ -39,12 +42,13 @@ class History:
         return History(self.y[rows])
 
     def repeat(self, n: int) -> History:
-        """This one-track history (B = 1) for ``n`` tracks (e.g. ``n`` candidate parameter sets)."""
+        """This one-track history (B = 1) for ``n`` tracks (e.g. ``n`` candidate parameter sets): a broadcast view,
+        not ``n`` copies."""
         if self.y.shape[0] != 1:
             raise ValueError(f"repeat needs a one-track history; History.y has shape {self.y.shape}, allowed (1, H, M)")
         if not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"n={n!r}; allowed: an integer >= 1")
-        return History(np.repeat(self.y, n, axis=0))
+        return History(np.broadcast_to(self.y, (int(n), *self.y.shape[1:])))
 
 
 def continue_span(y: np.ndarray, history: History | None, reach: int) -> tuple[np.ndarray, int, History]:
@@ -59,5 +63,6 @@ def continue_span(y: np.ndarray, history: History | None, reach: int) -> tuple[n
             raise ValueError(f"carry holds {past.shape[0]} track(s) of {past.shape[2]} coordinate(s); y has "
                              f"{y.shape[0]} of {y.shape[2]}: allowed the same (History.repeat for candidates)")
     full = np.concatenate([past, y], axis=1)
+    full.setflags(write=False)  # new and read-only: History keeps it without a copy
     lead = min(past.shape[1], reach)
     return full[:, past.shape[1] - lead:], lead, History(full)

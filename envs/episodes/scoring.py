@@ -12,8 +12,9 @@ SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
 
 
 def box_model(tau: float) -> filters.StateSpaceModel:
-    """The (cx, cy, w, h) constant-velocity model at frame interval ``tau`` (cached: :func:`filters.cv_model`)."""
-    return filters.cv_model(float(tau), 4)
+    """The (cx, cy, w, h) constant-velocity model at frame interval ``tau`` (:func:`filters.constant_velocity`,
+    which caches its models)."""
+    return filters.constant_velocity(float(tau), ndim=4)
 
 
 def _used(backend: str, params: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

@@ -41,7 +41,3 @@ def test_tracks_of_different_lengths_and_intervals_equal_each_track_alone(name: 
         alone = filters.candidate_positions(name, ys[i], taus[i], _params(name, slice(i, i + 1)))[0]
         np.testing.assert_allclose(est[i], alone, rtol=1e-12, atol=1e-9)
 
-
-def test_the_model_is_cached() -> None:
-    assert filters.cv_model(0.05, 4) is filters.cv_model(0.05, 4)
-    assert filters.cv_model(0.05, 4).tau == 0.05 and filters.cv_model(0.05, 2).M == 2

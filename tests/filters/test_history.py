@@ -87,3 +87,11 @@ def test_history_checks_its_shapes() -> None:
         History(np.zeros((1, 5, 4))).repeat(0)
     with pytest.raises(ValueError, match="no camera states"):
         flt.run_from(np.zeros((20, 4)), None, np.zeros((20, 2)))
+
+
+def test_a_history_never_follows_later_changes_of_the_caller_s_array() -> None:
+    y = np.zeros((1, 5, 4))
+    history = History(y)
+    y[0, 0, 0] = 1.0
+    assert history.y[0, 0, 0] == 0.0 and not history.y.flags.writeable
+    assert np.shares_memory(history.repeat(3).y, history.y)  # candidates share one history, no copies
