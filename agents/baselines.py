@@ -268,8 +268,12 @@ class AmortisedPolicy(ObsPolicy):
     def fit(cls, obs: np.ndarray, targets: np.ndarray, *, hidden: tuple[int, ...] = (64, 64),
             seed: int = 0) -> AmortisedPolicy:
         """Fit on observations (n, n_features) and oracle actions (n, d)."""
-        mlp = MLPRegressor(hidden_layer_sizes=hidden, early_stopping=True, max_iter=2000, n_iter_no_change=30,
-                           learning_rate_init=1e-3, alpha=1e-4, random_state=seed)
-        regressor = make_pipeline(StandardScaler(), mlp)
-        regressor.fit(np.asarray(obs, dtype=np.float64), targets)
-        return cls(regressor)
+        return cls(mlp_regressor(hidden, seed).fit(np.asarray(obs, dtype=np.float64), targets))
+
+
+def mlp_regressor(hidden: tuple[int, ...], seed: int) -> Any:
+    """An unfitted MLP regressor on standardised features (early stopping on a 10 % hold-out), as the supervised
+    tuners use it."""
+    mlp = MLPRegressor(hidden_layer_sizes=hidden, early_stopping=True, max_iter=2000, n_iter_no_change=30,
+                       learning_rate_init=1e-3, alpha=1e-4, random_state=seed)
+    return make_pipeline(StandardScaler(), mlp)

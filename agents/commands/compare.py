@@ -29,10 +29,13 @@ Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by agents.r
 window), oneshot_oracle (the best single action for the track, with the truth), oneshot_learned (--oneshot-model
 RUN_DIR: a FilterTune-v0 run's action for the whole track, chosen seeing the whole track; left out without it) and
 oneshot_learned_online (the same model choosing from the warm-up window only), window_oracle (greedy per-window
-search with the truth, carrying the filter state), adaptive (Sage–Husa), imm (IMM over two KF tunings) and the
-trained model(s), all on the frames after the warm-up window; summary.md adds the share of the one-shot →
-per-window gap each method closes and the paired log-ratio against oneshot_learned; parameter_schedule.png shows
-test episode 0's parameters per window against its true regime switches (scenario=nonstationary).
+search with the truth, carrying the filter state), window_amortised (a learned sequential tuner without RL: a
+regressor from the window's observation to every candidate action's log RMSE on the coming window, fitted on
+--train-episodes train episodes, agents.window_regressor; --fit-seeds K fits K of them), adaptive (Sage–Husa), imm
+(IMM over two KF tunings) and the trained model(s), all on the frames after the warm-up window; summary.md adds
+the share of the one-shot → per-window gap each method closes and the paired log-ratio of every sequential tuner
+against oneshot_learned; parameter_schedule.png shows test episode 0's parameters per window against its true
+regime switches (scenario=nonstationary).
 
     python scripts/compare.py --model runs/ppo_retune --oneshot-model runs/ppo_oneshot --env-kwargs scenario=nonstationary
 
@@ -61,6 +64,7 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 import torch
 
 from agents.baselines import GridSearch, OraclePolicy, RulePolicy
@@ -77,7 +81,8 @@ from agents.run_files import RunError
 from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env
 from agents.safe_load import check_env_match
 from agents.seeds_report import profile_curves, seeds_section
-from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
+from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec, train_seeds
+from agents.window_regressor import WINDOW_AMORTISED, WindowRegressorPolicy
 from envs.data.atomic_files import write_text_atomic
 from envs.episodes.config import EnvConfig
 
@@ -113,8 +118,11 @@ def build_parser() -> ArgumentParser:
                         "training episodes, Optuna, the regressor and the bootstrap")
     p.add_argument("--out", type=out_dir, default=None, help="output folder, new or empty (default RUN_DIR/compare)")
     p.add_argument("--train-episodes", type=int_range(MIN_TRAIN_EPISODES), default=1000,
-                   help="train episodes for the amortised regressor (>= 11: it holds out 10 %% for early stopping, "
-                        "which needs 2)")
+                   help=f"train episodes for the amortised regressor ({RETUNE_ENV} runs: for {WINDOW_AMORTISED}, each "
+                        "of its windows a sample) (>= 11: it holds out 10 %% for early stopping, which needs 2)")
+    p.add_argument("--fit-seeds", type=positive_int, default=1, metavar="K",
+                   help=f"{RETUNE_ENV} runs: fit {WINDOW_AMORTISED} K times (seeds --seed … --seed + K − 1, each on its own "
+                        f"--train-episodes train episodes), scored as {WINDOW_AMORTISED}_s<k> when K > 1")
     p.add_argument("--global-trials", type=positive_int, default=64, help="Optuna TPE trials of the global tuner")
     p.add_argument("--oracle-budget", type=positive_int, default=300, help="first-stage candidates of the oracle's grid search")
     p.add_argument("--bootstrap", type=positive_int, default=2000, help="bootstrap resamples")
@@ -133,6 +141,8 @@ def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[s
         parser.error(f"--env {env_id}: {args.model} was trained on {cfg['env_id']}; compare.py scores a run on its own env id")
     if args.oneshot_model is not None and env_id != RETUNE_ENV:
         parser.error(f"--oneshot-model: only for runs of {RETUNE_ENV} (this one is of {env_id})")
+    if args.fit_seeds != 1 and env_id != RETUNE_ENV:
+        parser.error(f"--fit-seeds: only for runs of {RETUNE_ENV} (this one is of {env_id})")
     try:
         overrides = key_values("--env-kwargs", args.env_kwargs)
     except ValueError as err:
@@ -218,18 +228,33 @@ def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneSho
     return OneShotLearned(policy, tune_env)
 
 
-def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], env_and_kwargs: tuple[gym.Env, dict[str, Any]],
+def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace) -> list[WindowRegressorPolicy]:
+    """``--fit-seeds`` window regressors (agents.window_regressor), each on its own ``--train-episodes`` train episodes."""
+    fitted = []
+    for k in range(args.fit_seeds):
+        seed = args.seed + k
+        name = WINDOW_AMORTISED if args.fit_seeds == 1 else f"{WINDOW_AMORTISED}_s{seed}"
+        start = time.perf_counter()
+        fitted.append(WindowRegressorPolicy.fit(train_env, train_seeds(np.random.default_rng(seed), args.train_episodes),
+                                                seed=seed, name=name, progress=True))
+        print(f"fitted {name} on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
+    return fitted
+
+
+def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwargs: tuple[gym.Env, gym.Env, dict[str, Any]],
                    episodes: list[EpisodeSpec], learned: list[SB3Policy], oneshot: OneShotLearned | None, out: Path,
                    command: str) -> Path:
     """The FilterRetune-v0 comparison (agents.retune_eval): results.csv, summary.md and the figures in ``out``."""
-    env, env_kwargs = env_and_kwargs
+    env, train_env, env_kwargs = envs_and_kwargs
     config = env.unwrapped.config
     search = GridSearch(budget=args.oracle_budget)
-    online = [OneShotLearned(oneshot.policy, oneshot.tune_env, online=True)] if oneshot else []
-    methods = [Sequential(RulePolicy()), OneShotOracle(search), *([oneshot] if oneshot else []), *online,
-               window_oracle(search), *(Sequential(p) for p in learned)]
     print(f"seed: {args.seed}\n{cfg['algo']} from {args.model}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} "
           f"episodes, window {config.window}")
+    regressors = fit_window_regressors(train_env, args)
+    online = [OneShotLearned(oneshot.policy, oneshot.tune_env, online=True)] if oneshot else []
+    methods = [Sequential(RulePolicy()), OneShotOracle(search), *([oneshot] if oneshot else []), *online,
+               window_oracle(search), *(Sequential(p) for p in [*regressors, *learned])]
+    sequential = [p.name for p in [*regressors, *learned]]
     start = time.perf_counter()
     result = evaluate_retune(env, methods, episodes, progress=True)
     print(f"scored {len(result.truth_at_test)} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
@@ -237,22 +262,27 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], env_and_kwargs
     title = f"{cfg['algo']} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
     gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
     ex = result.example
-    shown = {k: v for k, v in ex["schedules"].items() if k in ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, cfg["algo"])}
+    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, cfg["algo"])
+    shown = {k: v for k, v in ex["schedules"].items() if k in plotted}
     parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
     settings_md = {"command": f"`{command}`",
                    "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})",
                    "oneshot_learned": f"`{args.oneshot_model}` (its final model)" if oneshot else "not scored (no --oneshot-model)",
+                   WINDOW_AMORTISED: f"{', '.join(p.name for p in regressors)}: per-window regressor(s) "
+                                     f"(agents.window_regressor, {len(regressors[0].candidates)} candidate actions) fitted "
+                                     f"on {args.train_episodes} train-split episodes each (seeds {args.seed} … "
+                                     f"{args.seed + args.fit_seeds - 1})",
                    "env": f"`{env_kwargs}`",
                    "test episodes": describe_episodes(args, config.source, episodes),
                    "scored frames": f"every frame after the warm-up window (the first {config.window}, filtered by the rule "
                                     "for every filter method)",
                    "oracles": f"grid of <= {search.budget} actions, then {search.rounds} local refinements, with the truth: "
                               f"{ONESHOT_ORACLE} one action for the whole track, {WINDOW_ORACLE} greedily per window"}
-    summary = summary_markdown(result.rows, result.truth_at_test, learned=[p.name for p in learned], title=title,
+    summary = summary_markdown(result.rows, result.truth_at_test, learned=sequential, title=title,
                                settings=settings_md, figures=["gain_boxplot.png", "parameter_schedule.png"],
                                n_boot=args.bootstrap, seed=args.seed, rmse_oracle=WINDOW_ORACLE)
     head, figures = summary.split("## Figures")
-    summary = head + "\n".join(retune_tables(result.rows, [p.name for p in learned], args.bootstrap, args.seed)) + \
+    summary = head + "\n".join(retune_tables(result.rows, sequential, args.bootstrap, args.seed)) + \
         "\n## Figures" + figures
     write_text_atomic(out / "summary.md", summary)
     print(summary.split("## Paired")[0])
@@ -306,7 +336,7 @@ def run(argv: list[str] | None = None) -> Path:
     except (RunError, OSError) as err:
         parser.error(str(err))
     if env_id == RETUNE_ENV:
-        return compare_retune(args, cfg, (test_env, env_kwargs), episodes, learned, oneshot, out, command)
+        return compare_retune(args, cfg, (test_env, train_env, env_kwargs), episodes, learned, oneshot, out, command)
     config = test_env.unwrapped.config
     algo, source = cfg["algo"], config.source
     print(f"seed: {args.seed}\n{algo} from {args.model}: {env_id} {env_kwargs}, {len(episodes)} {args.split} episodes")

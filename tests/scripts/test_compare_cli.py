@@ -35,6 +35,8 @@ CASES = [
     misuse("--model", "{run}", "--env-kwargs", "source=otb", mentions="--env-kwargs"),  # $OTB_ROOT unset
     misuse("--model", "{run}", "--env", "bboxtune/FilterRetune-v0", mentions="--env"),
     misuse("--model", "{run}", "--env", "bboxtune/NoSuch-v0", mentions="--env"),
+    misuse("--model", "{run}", "--fit-seeds", "2", mentions="--fit-seeds: only for runs of bboxtune/FilterRetune-v0"),
+    *[misuse("--model", "{run}", "--fit-seeds", v) for v in ("0", "-1", "x")],
     misuse("--model", "{run}", "--split", "nope"), misuse("--model", "{run}", "--split"),
     misuse("--model", "{run}", "--seeds-per-sequence", "3", mentions="--seeds-per-sequence applies to source 'otb'"),
     *[misuse("--model", "{run}", "--seeds-per-sequence", v) for v in ("0", "-1", "abc", "1.5")],

@@ -1,5 +1,6 @@
 """scripts/compare.py on a tiny FilterRetune-v0 run (scenario "nonstationary"): the re-tuning methods, one row per
-method × episode, the gap table, the parameter-schedule figure, and --oneshot-model's checks."""
+method × episode (window_amortised fitted twice with --fit-seeds 2), the gap table, the parameter-schedule figure,
+and --oneshot-model's checks."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from agents.commands import compare
 from .tiny_run import TINY, tiny_run, train  # noqa: F401  (fixtures)
 
 METHODS = {"raw", "rule", "oneshot_oracle", "oneshot_learned", "oneshot_learned_online", "window_oracle", "adaptive", "imm", "ppo",
-           "ppo_best"}
+           "ppo_best", "window_amortised_s0", "window_amortised_s1"}
 EPISODES = 4
 NONSTATIONARY = ["--env-kwargs", "track_length:100", "scenario:nonstationary"]
 
@@ -34,7 +35,8 @@ def runs(train, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]: 
 def test_compare_scores_a_retune_run_against_every_baseline(runs: tuple[Path, Path], tmp_path: Path) -> None:
     retune, oneshot = runs
     out = compare.run(["--model", str(retune), "--oneshot-model", str(oneshot), "--episodes",
-                       str(EPISODES), "--oracle-budget", "16", "--bootstrap", "50", "--out", str(tmp_path / "c")])
+                       str(EPISODES), "--oracle-budget", "16", "--bootstrap", "50", "--train-episodes", "12", "--fit-seeds", "2",
+                       "--out", str(tmp_path / "c")])
     with open(out / "results.csv") as fh:
         table = list(csv.DictReader(fh))
     assert {r["method"] for r in table} == METHODS and len(table) == len(METHODS) * EPISODES
@@ -45,6 +47,7 @@ def test_compare_scores_a_retune_run_against_every_baseline(runs: tuple[Path, Pa
         assert float(by["oneshot_oracle"]["rmse"]) <= float(by["rule"]["rmse"]) + 1e-9
     summary = (out / "summary.md").read_text()
     assert "## Re-tuning: the one-shot → per-window gap" in summary and "Paired: sequential against oneshot_learned" in summary
+    assert "| window_amortised_s1 |" in summary.split("Paired: sequential against oneshot_learned")[1]
     assert "oneshot_learned: `" in summary and (out / "parameter_schedule.png").stat().st_size > 0
 
 
