@@ -1,0 +1,109 @@
+"""The FilterRetune-v0 part of ``scripts/compare.py``: the re-tuning methods (agents.retune_eval), the per-window
+regressors it fits (agents.window_regressor, ``--fit-seeds``), the one-shot model it loads (``--oneshot-model``), and
+the summary with the one-shot → per-window gap (agents.report_retune). compare.py parses and checks the arguments."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from agents.baselines import GridSearch, RulePolicy
+from agents.plots import gain_boxplot, parameter_schedule
+from agents.report import by_method, summary_markdown, write_results_csv
+from agents.report_retune import retune_tables
+from agents.retune_eval import (ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
+                                evaluate_retune, window_oracle)
+from agents.run_files import RunError
+from agents.runs import ENV_ERRORS, SB3Policy, load_config, make_env
+from agents.safe_load import check_env_match
+from agents.splits import EpisodeSpec, train_seeds
+from agents.window_regressor import WINDOW_AMORTISED, WindowRegressorPolicy
+from envs.data.atomic_files import write_text_atomic
+
+ONE_STEP_ENV = "bboxtune/FilterTune-v0"
+RETUNE_ENV = "bboxtune/FilterRetune-v0"
+
+
+def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneShotLearned:
+    """``--oneshot-model``: a FilterTune-v0 run's final model, checked against a FilterTune-v0 env with the
+    evaluation's arguments (which it observes the whole track in)."""
+    cfg = load_config(args.oneshot_model)
+    if cfg["env_id"] != ONE_STEP_ENV:
+        raise RunError(f"--oneshot-model {args.oneshot_model}: trained on {cfg['env_id']}, not {ONE_STEP_ENV}")
+    try:
+        tune_env = make_env(ONE_STEP_ENV, env_kwargs, split=args.split)
+    except ENV_ERRORS as err:
+        raise RunError(f"--oneshot-model: env {ONE_STEP_ENV} {env_kwargs} cannot be built ({' '.join(str(err).split())})") from None
+    policy = SB3Policy.load(args.oneshot_model, "final", trust_pickle=args.trust_pickle)
+    check_env_match(args.oneshot_model / "model.zip", policy.model, cfg, tune_env)
+    return OneShotLearned(policy, tune_env)
+
+
+def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace) -> list[WindowRegressorPolicy]:
+    """``--fit-seeds`` window regressors (agents.window_regressor), each on its own ``--train-episodes`` train episodes."""
+    fitted = []
+    for k in range(args.fit_seeds):
+        seed = args.seed + k
+        name = WINDOW_AMORTISED if args.fit_seeds == 1 else f"{WINDOW_AMORTISED}_s{seed}"
+        start = time.perf_counter()
+        fitted.append(WindowRegressorPolicy.fit(train_env, train_seeds(np.random.default_rng(seed), args.train_episodes),
+                                                seed=seed, name=name, progress=True))
+        print(f"fitted {name} on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
+    return fitted
+
+
+def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwargs: tuple[gym.Env, gym.Env, dict[str, Any]],
+                   episodes_described: tuple[list[EpisodeSpec], str], learned: list[SB3Policy],
+                   oneshot: OneShotLearned | None, out: Path, command: str) -> Path:
+    """The FilterRetune-v0 comparison (agents.retune_eval) of compare.py's parsed ``args``: the test env, the train
+    env (the regressors' episodes) and their kwargs, the test episodes with their description for summary.md, the
+    run's models and ``--oneshot-model``; writes results.csv, summary.md and the figures in ``out``."""
+    env, train_env, env_kwargs = envs_and_kwargs
+    episodes, described = episodes_described
+    config = env.unwrapped.config
+    search = GridSearch(budget=args.oracle_budget)
+    print(f"seed: {args.seed}\n{cfg['algo']} from {args.model}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} "
+          f"episodes, window {config.window}")
+    regressors = fit_window_regressors(train_env, args)
+    online = [OneShotLearned(oneshot.policy, oneshot.tune_env, online=True)] if oneshot else []
+    methods = [Sequential(RulePolicy()), OneShotOracle(search), *([oneshot] if oneshot else []), *online,
+               window_oracle(search), *(Sequential(p) for p in [*regressors, *learned])]
+    sequential = [p.name for p in [*regressors, *learned]]
+    start = time.perf_counter()
+    result = evaluate_retune(env, methods, episodes, progress=True)
+    print(f"scored {len(result.truth_at_test)} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
+    write_results_csv(out / "results.csv", result.rows)
+    title = f"{cfg['algo']} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
+    gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
+    ex = result.example
+    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, cfg["algo"])
+    shown = {k: v for k, v in ex["schedules"].items() if k in plotted}
+    parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
+    settings_md = {"command": f"`{command}`",
+                   "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})",
+                   "oneshot_learned": f"`{args.oneshot_model}` (its final model)" if oneshot else "not scored (no --oneshot-model)",
+                   WINDOW_AMORTISED: f"{', '.join(p.name for p in regressors)}: per-window regressor(s) "
+                                     f"(agents.window_regressor, {len(regressors[0].candidates)} candidate actions) fitted "
+                                     f"on {args.train_episodes} train-split episodes each (seeds {args.seed} … "
+                                     f"{args.seed + args.fit_seeds - 1})",
+                   "env": f"`{env_kwargs}`",
+                   "test episodes": described,
+                   "scored frames": f"every frame after the warm-up window (the first {config.window}, filtered by the rule "
+                                    "for every filter method)",
+                   "oracles": f"grid of <= {search.budget} actions, then {search.rounds} local refinements, with the truth: "
+                              f"{ONESHOT_ORACLE} one action for the whole track, {WINDOW_ORACLE} greedily per window"}
+    summary = summary_markdown(result.rows, result.truth_at_test, learned=sequential, title=title,
+                               settings=settings_md, figures=["gain_boxplot.png", "parameter_schedule.png"],
+                               n_boot=args.bootstrap, seed=args.seed, rmse_oracle=WINDOW_ORACLE)
+    head, figures = summary.split("## Figures")
+    summary = head + "\n".join(retune_tables(result.rows, sequential, args.bootstrap, args.seed)) + \
+        "\n## Figures" + figures
+    write_text_atomic(out / "summary.md", summary)
+    print(summary.split("## Paired")[0])
+    print(f"wrote {out}")
+    return out
