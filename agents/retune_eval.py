@@ -45,7 +45,6 @@ from agents.baselines import GridSearch, OraclePolicy, Policy, RulePolicy
 from agents.evaluate import ADAPTIVE, RAW, TRUE_KEYS
 from agents.imm import IMMConfig, imm_positions
 from agents.splits import EpisodeSpec
-from envs.episodes.features import measurement_features
 from envs.episodes.scoring import score_estimates
 
 ONESHOT_ORACLE, WINDOW_ORACLE, ONESHOT_LEARNED = "oneshot_oracle", "window_oracle", "oneshot_learned"
@@ -125,11 +124,10 @@ class OneShotLearned(OneShot):
 
     def choose(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
         base = env.unwrapped
-        ep = base.episode
         if self.online:  # the FilterTune-v0 features of the frames seen so far; no whole-track episode needed
-            seen = base.window_start
-            tune_obs = measurement_features(ep.y[:seen], ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, base.rule_estimates[:seen])
+            tune_obs = base.features_so_far()
         else:
+            ep = base.episode
             options = {k: ep.meta[k] for k in ("noise_seed", "sequence", "tracker") if ep.meta.get(k) not in (None, "")}
             tune_obs, _ = self.tune_env.reset(options=options)
         self.policy.begin_episode()

@@ -61,7 +61,9 @@ class FilterRetuneEnv(TrackEnv):
     action also shapes later windows' rewards — train with discounting across windows
     (``agents/hyperparams/ppo.yml``: γ = 0.95, λ = 0.9). ``score_rest(actions)`` scores actions held to the
     track's end (one-shot tuning from here on), ``score(actions)`` the current window only; ``estimates`` are
-    the boxes filtered so far, ``rule_estimates`` the rule's, ``window_start`` the next window's first frame.
+    the boxes filtered so far, ``rule_estimates`` the rule's, ``window_start`` the next window's first frame, and
+    ``features_so_far()`` the FilterTune-v0 observation of the frames filtered so far (what a one-shot tuner would
+    see if the track ended there).
 
     ## Starting State
     As FilterTune-v0: ``reset(options={"sequence": ..., "noise_seed": ..., "tracker": ...})`` pins an
@@ -201,6 +203,15 @@ class FilterRetuneEnv(TrackEnv):
         end = len(self.episode.y)
         est, _ = self._run_window(params, self._broadcast_carry(len(params["horizon"])), end)
         return self._score_window(est, params, self._start, end)
+
+    def features_so_far(self) -> np.ndarray:
+        """The FilterTune-v0 observation (``envs.episodes.features.FEATURE_NAMES``) of every frame filtered so far,
+        [0, ``window_start``): the whole track's features as a one-shot tuner would see them if the track ended here
+        (measurement-only; the pilot residual against the rule's estimates on those frames)."""
+        if self.episode is None:
+            raise RuntimeError("no episode: call reset()")
+        ep, seen = self.episode, self._start
+        return measurement_features(ep.y[:seen], ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, self._rule_est[:seen])
 
     @property
     def window_start(self) -> int:

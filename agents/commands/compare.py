@@ -33,8 +33,9 @@ search with the truth, carrying the filter state), window_amortised (a learned s
 regressor from the window's observation to every candidate action's log RMSE on the coming window, fitted on
 --train-episodes train episodes, agents.window_regressor; --fit-seeds K fits K of them), adaptive (Sage–Husa), imm
 (IMM over two KF tunings) and the trained model(s), all on the frames after the warm-up window; summary.md adds
-the share of the one-shot → per-window gap each method closes and the paired log-ratio of every sequential tuner
-against oneshot_learned; parameter_schedule.png shows test episode 0's parameters per window against its true
+the share of the one-shot → per-window gap each method closes, the paired log-ratio of every sequential tuner
+against oneshot_learned and, with several --model or --fit-seeds K > 1, their IQM and mean across seeds;
+parameter_schedule.png shows test episode 0's parameters per window against its true
 regime switches (scenario=nonstationary).
 
     python scripts/compare.py --model runs/ppo_retune --oneshot-model runs/ppo_oneshot --env-kwargs scenario=nonstationary
@@ -45,13 +46,13 @@ tracker empty for sim), summary.md (tables with 95 % bootstrap CIs that resample
 a synthetic video with all its episodes — and simulated episodes, each its own cluster; sources other than sim
 add success AUC / precision against raw and rule, OTB sources per-attribute deltas and, for otb_tracker, rows
 per tracker), gain_boxplot.png, otb_curves.png,
-trajectory.png; with several --model (FilterTune-v0 runs of one algorithm and env, distinct seeds) every model is
+trajectory.png; with several --model (runs of one algorithm and env, distinct seeds) every model is
 scored on the same episodes as <algo>_s<seed> / <algo>_best_s<seed> beside one set of baselines, and summary.md
 adds their IQM and mean across seeds with stratified bootstrap CIs (rliable's estimator, agents.seeds_report)
-and performance_profile.png. The run's models are loaded without unpickling anything and checked against its config.yml
-(agents.safe_load) and against the evaluation env before any baseline is fitted; an old run whose statistics
-are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can run code: only for runs you
-trust). Bad arguments or run files: one line naming them, exit status 2.
+and, for FilterTune-v0 runs, performance_profile.png. The run's models are loaded without unpickling anything and
+checked against its config.yml (agents.safe_load) and against the evaluation env before any baseline is fitted;
+an old run whose statistics are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can
+run code: only for runs you trust). Bad arguments or run files: one line naming them, exit status 2.
 """
 
 from __future__ import annotations
@@ -92,9 +93,10 @@ DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episo
 def build_parser() -> ArgumentParser:
     p = ArgumentParser(prog="compare.py", description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False)
     p.add_argument("--model", type=existing_dir, nargs="+", required=True, metavar="RUN_DIR",
-                   help="a scripts/train.py run directory; several (FilterTune-v0 runs of one env, e.g. training seeds): "
+                   help="a scripts/train.py run directory; several (runs of one env and algorithm, e.g. training seeds): "
                         "each scored on the same episodes as <algo>_s<seed>, and summary.md adds IQM and mean across "
-                        "them with stratified bootstrap CIs (agents.seeds_report) and performance_profile.png; needs --out")
+                        "them with stratified bootstrap CIs (agents.seeds_report; FilterTune-v0 runs also "
+                        "performance_profile.png); needs --out")
     p.add_argument("--env", default=None, metavar="ID", help=f"env id (default: the run's; one of {ENVS}, the run's kind)")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
                    help="override the run's env arguments (envs.episodes.config.EnvConfig fields, YAML values; KEY:VALUE also "
@@ -208,6 +210,13 @@ def load_seed_runs(runs: list[Path], cfg: dict[str, Any], env: gym.Env, trust_pi
     return learned, {k: v for k, v in groups.items() if len(v) == len(runs)}
 
 
+def describe_models(run: Path, runs: list[Path], learned: list[SB3Policy], cfg: dict[str, Any]) -> str:
+    """The settings line of the scored model(s)."""
+    if len(runs) == 1:
+        return f"`{run}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})"
+    return ", ".join(f"`{r}`" for r in runs) + " (one per training seed)"
+
+
 def describe_episodes(args: argparse.Namespace, source: str, episodes: list[EpisodeSpec]) -> str:
     """The settings line of the scored episodes."""
     n = len(episodes)
@@ -235,9 +244,8 @@ def run(argv: list[str] | None = None) -> Path:
     try:  # everything that can be checked is checked before the (long) fitting and scoring
         check_free(out, "choose another --out")
         cfg = load_config(args.model)
-        if cfg["env_id"] not in ENVS or (len(runs) > 1 and cfg["env_id"] != ONE_STEP_ENV):
-            raise RunError(f"{args.model} was trained on {cfg['env_id']}; compare.py scores runs of "
-                           f"{ENVS if len(runs) == 1 else ONE_STEP_ENV + ' (several --model)'}")
+        if cfg["env_id"] not in ENVS:
+            raise RunError(f"{args.model} was trained on {cfg['env_id']}; compare.py scores runs of {ENVS}")
         env_id, env_kwargs = evaluation_env(parser, args, cfg)
         try:
             test_env, train_env = make_env(env_id, env_kwargs, split=args.split), make_env(env_id, env_kwargs, split="train")
@@ -253,9 +261,10 @@ def run(argv: list[str] | None = None) -> Path:
         out.mkdir(parents=True, exist_ok=True)
     except (RunError, OSError) as err:
         parser.error(str(err))
+    models = (learned, groups, describe_models(args.model, runs, learned, cfg))
     if env_id == RETUNE_ENV:
         described = describe_episodes(args, test_env.unwrapped.config.source, episodes)
-        return compare_retune(args, cfg, (test_env, train_env, env_kwargs), (episodes, described), learned, oneshot, out,
+        return compare_retune(args, cfg, (test_env, train_env, env_kwargs), (episodes, described), models, oneshot, out,
                               command)
     config = test_env.unwrapped.config
     algo, source = cfg["algo"], config.source
@@ -283,9 +292,7 @@ def run(argv: list[str] | None = None) -> Path:
     changed = sorted(k for k, v in env_kwargs.items() if k not in cfg["env_kwargs"] or cfg["env_kwargs"][k] != v)
     other = "oracle_auc: the same search maximising success AUC" if config.reward == "rmse" else \
         "oracle_rmse: the same search minimising RMSE"
-    settings_md = {"command": f"`{command}`",
-                   "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})"
-                            if len(runs) == 1 else ", ".join(f"`{r}`" for r in runs) + " (one per training seed)",
+    settings_md = {"command": f"`{command}`", "model": models[2],
                    "env": f"`{env_kwargs}`" + (f" (changed from the run's: {changed})" if changed else
                                                 " (the run's own)"),
                    "test episodes": describe_episodes(args, source, episodes),

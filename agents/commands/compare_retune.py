@@ -16,11 +16,12 @@ from agents.baselines import GridSearch, RulePolicy
 from agents.plots import gain_boxplot, parameter_schedule
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.report_retune import retune_tables
-from agents.retune_eval import (ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
+from agents.retune_eval import (ONESHOT_LEARNED, ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
                                 evaluate_retune, window_oracle)
 from agents.run_files import RunError
 from agents.runs import ENV_ERRORS, SB3Policy, load_config, make_env
 from agents.safe_load import check_env_match
+from agents.seeds_report import seeds_section
 from agents.splits import EpisodeSpec, train_seeds
 from agents.window_regressor import WINDOW_AMORTISED, WindowRegressorPolicy
 from envs.data.atomic_files import write_text_atomic
@@ -58,13 +59,16 @@ def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace) -> list[
 
 
 def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwargs: tuple[gym.Env, gym.Env, dict[str, Any]],
-                   episodes_described: tuple[list[EpisodeSpec], str], learned: list[SB3Policy],
-                   oneshot: OneShotLearned | None, out: Path, command: str) -> Path:
+                   episodes_described: tuple[list[EpisodeSpec], str],
+                   models: tuple[list[SB3Policy], dict[str, list[str]], str], oneshot: OneShotLearned | None, out: Path,
+                   command: str) -> Path:
     """The FilterRetune-v0 comparison (agents.retune_eval) of compare.py's parsed ``args``: the test env, the train
     env (the regressors' episodes) and their kwargs, the test episodes with their description for summary.md, the
-    run's models and ``--oneshot-model``; writes results.csv, summary.md and the figures in ``out``."""
+    run(s)' models with their groups across training seeds and description, and ``--oneshot-model``; writes
+    results.csv, summary.md and the figures in ``out``."""
     env, train_env, env_kwargs = envs_and_kwargs
     episodes, described = episodes_described
+    learned, groups, models_described = models
     config = env.unwrapped.config
     search = GridSearch(budget=args.oracle_budget)
     print(f"seed: {args.seed}\n{cfg['algo']} from {args.model}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} "
@@ -81,11 +85,10 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     title = f"{cfg['algo']} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
     gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
     ex = result.example
-    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, cfg["algo"])
+    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, learned[0].name)
     shown = {k: v for k, v in ex["schedules"].items() if k in plotted}
     parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
-    settings_md = {"command": f"`{command}`",
-                   "model": f"`{args.model}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})",
+    settings_md = {"command": f"`{command}`", "model": models_described,
                    "oneshot_learned": f"`{args.oneshot_model}` (its final model)" if oneshot else "not scored (no --oneshot-model)",
                    WINDOW_AMORTISED: f"{', '.join(p.name for p in regressors)}: per-window regressor(s) "
                                      f"(agents.window_regressor, {len(regressors[0].candidates)} candidate actions) fitted "
@@ -100,8 +103,13 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     summary = summary_markdown(result.rows, result.truth_at_test, learned=sequential, title=title,
                                settings=settings_md, figures=["gain_boxplot.png", "parameter_schedule.png"],
                                n_boot=args.bootstrap, seed=args.seed, rmse_oracle=WINDOW_ORACLE)
+    if len(regressors) > 1:
+        groups = {**groups, WINDOW_AMORTISED: [p.name for p in regressors]}
     head, figures = summary.split("## Figures")
-    summary = head + "\n".join(retune_tables(result.rows, sequential, args.bootstrap, args.seed)) + \
+    seeds = seeds_section(result.rows, groups, n_boot=args.bootstrap, seed=args.seed,
+                          reference=[m for m in ("raw", "rule", ONESHOT_LEARNED, ONESHOT_ORACLE, WINDOW_ORACLE)
+                                     if m in result.truth_at_test]) if groups else ""
+    summary = head + "\n".join(retune_tables(result.rows, sequential, args.bootstrap, args.seed)) + "\n" + seeds + \
         "\n## Figures" + figures
     write_text_atomic(out / "summary.md", summary)
     print(summary.split("## Paired")[0])

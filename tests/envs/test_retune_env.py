@@ -78,3 +78,21 @@ def test_step_after_the_last_window_raises_and_reset_recovers() -> None:
         env.step(np.zeros(2, np.float32))
     env.reset()
     assert env.step(np.zeros(2, np.float32))[2]  # a new 2-window episode: its one step ends it
+
+
+@pytest.mark.parametrize("backend", ["ufir_cmn", "kf_cmn"])
+def test_features_so_far_grow_into_the_one_shot_observation_of_the_whole_track(backend: str) -> None:
+    """features_so_far() is the FilterTune-v0 observation of the frames filtered so far: after the last window it is
+    exactly FilterTune-v0's observation of the same episode, and before it, that of the track cut at window_start."""
+    kwargs = dict(backend=backend, scenario="nonstationary", track_length=120, window=40)
+    env, tune = gym.make(RETUNE, **kwargs), gym.make(TUNE, **kwargs)
+    env.reset(options={"noise_seed": 3})
+    first = env.unwrapped.features_so_far()
+    assert first[-1] == pytest.approx(np.log(40))  # the last feature is log(frames seen)
+    while not env.step(np.zeros(env.action_space.shape, np.float32))[2]:
+        pass
+    whole, _ = tune.reset(options={"noise_seed": 3})
+    np.testing.assert_array_equal(env.unwrapped.features_so_far(), whole)
+    assert not np.array_equal(first, whole)
+    with pytest.raises(RuntimeError, match="reset"):
+        gym.make(RETUNE).unwrapped.features_so_far()

@@ -1,6 +1,6 @@
-"""scripts/compare.py on a tiny FilterRetune-v0 run (scenario "nonstationary"): the re-tuning methods, one row per
-method × episode (window_amortised fitted twice with --fit-seeds 2), the gap table, the parameter-schedule figure,
-and --oneshot-model's checks."""
+"""scripts/compare.py on tiny FilterRetune-v0 runs (scenario "nonstationary"; two training seeds): the re-tuning
+methods, one row per method × episode (window_amortised fitted twice with --fit-seeds 2), the gap table, the
+across-seeds table, the parameter-schedule figure, and --oneshot-model's checks."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from agents.commands import compare
 
 from .tiny_run import TINY, tiny_run, train  # noqa: F401  (fixtures)
 
-METHODS = {"raw", "rule", "oneshot_oracle", "oneshot_learned", "oneshot_learned_online", "window_oracle", "adaptive", "imm", "ppo",
-           "ppo_best", "window_amortised_s0", "window_amortised_s1"}
+METHODS = {"raw", "rule", "oneshot_oracle", "oneshot_learned", "oneshot_learned_online", "window_oracle", "adaptive", "imm",
+           "ppo_s0", "ppo_s1", "ppo_best_s0", "ppo_best_s1", "window_amortised_s0", "window_amortised_s1"}
 EPISODES = 4
 NONSTATIONARY = ["--env-kwargs", "track_length:100", "scenario:nonstationary"]
 
@@ -25,16 +25,17 @@ def _tiny(*extra: str) -> list[str]:
 
 
 @pytest.fixture(scope="module")
-def runs(train, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:  # noqa: F811
+def runs(train, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:  # noqa: F811
     root = tmp_path_factory.mktemp("retune_runs")
-    retune = train.run([*_tiny("--env", "bboxtune/FilterRetune-v0", "--env-kwargs", "window:40"), "--out", str(root / "rt")])
+    retune = [train.run([*_tiny("--env", "bboxtune/FilterRetune-v0", "--env-kwargs", "window:40"), "--seed", str(seed),
+                         "--out", str(root / f"rt{seed}")]) for seed in (0, 1)]
     oneshot = train.run([*_tiny(), "--out", str(root / "os")])
-    return retune, oneshot
+    return retune[0], oneshot, retune[1]
 
 
-def test_compare_scores_a_retune_run_against_every_baseline(runs: tuple[Path, Path], tmp_path: Path) -> None:
-    retune, oneshot = runs
-    out = compare.run(["--model", str(retune), "--oneshot-model", str(oneshot), "--episodes",
+def test_compare_scores_retune_runs_against_every_baseline(runs: tuple[Path, Path, Path], tmp_path: Path) -> None:
+    retune, oneshot, second = runs
+    out = compare.run(["--model", str(retune), str(second), "--oneshot-model", str(oneshot), "--episodes",
                        str(EPISODES), "--oracle-budget", "16", "--bootstrap", "50", "--train-episodes", "12", "--fit-seeds", "2",
                        "--out", str(tmp_path / "c")])
     with open(out / "results.csv") as fh:
@@ -49,11 +50,15 @@ def test_compare_scores_a_retune_run_against_every_baseline(runs: tuple[Path, Pa
     assert "## Re-tuning: the one-shot → per-window gap" in summary and "Paired: sequential against oneshot_learned" in summary
     assert "| window_amortised_s1 |" in summary.split("Paired: sequential against oneshot_learned")[1]
     assert "oneshot_learned: `" in summary and (out / "parameter_schedule.png").stat().st_size > 0
+    seeds = summary.split("## Across training seeds")[1].split("## Figures")[0]
+    for row in ("| ppo | 2 |", "| ppo_best | 2 |", "| window_amortised | 2 |", "| rule | 1 | +0.000 [+0.000, +0.000]",
+                "| oneshot_learned | 1 |", "| window_oracle | 1 |"):
+        assert row in seeds
 
 
-def test_oneshot_model_must_be_a_one_step_run(runs: tuple[Path, Path], tmp_path: Path,
+def test_oneshot_model_must_be_a_one_step_run(runs: tuple[Path, Path, Path], tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
-    retune, _ = runs
+    retune, *_ = runs
     with pytest.raises(SystemExit) as exc:
         compare.run(["--model", str(retune), "--oneshot-model", str(retune), "--out", str(tmp_path / "c")])
     assert exc.value.code == 2
