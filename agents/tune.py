@@ -67,7 +67,7 @@ DEFAULT_PRETRAINED = "otb_tracker_ufir_cmn"
 TAU_RANGE = (1e-3, 1.0)  # s, the envs' range of frame intervals
 MIN_FRAMES = 8  # the envs' shortest track
 MIN_MEASURED = 2  # a box scale and one difference
-SOURCE_ONLY = ("trackers", "mix_weights")  # env settings that EnvConfig refuses with source "sim"
+SOURCE_ONLY = ("trackers", "mix_weights", "otb_speedup_max")  # env settings that EnvConfig refuses with source "sim"
 
 
 def check_boxes(boxes: ArrayLike, name: str = "boxes") -> np.ndarray:

@@ -130,6 +130,13 @@ class FilterTuneEnv(TrackEnv):
     ignored: ``trackers`` with another source (or with ``mix_weights[2] == 0``), ``mix_weights`` other than
     the default without ``source="mix"``. Observation and action spaces do not depend on the source.
 
+    ``otb_speedup_max`` (OTB sources and OTB parts of a mix; default 1: off): on the **train split only**, each
+    episode plays every k-th frame of its sequence, k uniform in [1, otb_speedup_max] and a random offset,
+    at the same τ — the same object moving k times as far per frame, an augmentation for motion faster than
+    the training sequences show (a tuner that has only seen slow objects smooths fast ones away); k is lowered
+    where fewer than 64 frames would remain. ``info["track"]`` then adds ``stride`` and ``offset``; val and test
+    episodes (evaluation, model selection) always play every frame.
+
     ``scenario`` (sim, and the sim part of a mix, with ``motion="cv"``): ``"stationary"`` (default) draws one ψ,
     σ_w, σ_ξ per track; ``"nonstationary"`` keeps that draw as the first regime and adds, within the track,
     1–3 switches of ψ and σ_ξ (redrawn from ``psi_range`` / ``sigma_xi_range``, at frames in [T/10, 9T/10)),
@@ -172,6 +179,7 @@ class FilterTuneEnv(TrackEnv):
       units, so a block of tracks with different τ shares one filter call.
     * v0, ``reward_baseline`` (default ``"rule"``: no change to any reward) and ``sim_noise`` (default
       ``"absolute"``: no change to any episode).
+    * v0, ``otb_speedup_max`` (default 1: no change to any episode).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

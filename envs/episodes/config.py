@@ -156,6 +156,10 @@ class EnvConfig:
     # source "mix": relative weights of its parts (sim, otb, otb_tracker), each a real in [0, 1e6], sum > 0
     mix_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
     otb_tau: float = 1 / 30  # s, OTB frame interval (30 fps); in [1e-3, 1]
+    # OTB sources, train split only (augmentation for fast motion): each episode plays its sequence at a random frame
+    # stride k in [1, otb_speedup_max] (envs.episodes.sources.OTBSource), so the object moves k times as far per frame;
+    # the val and test splits always play every frame; integer in [1, 8]
+    otb_speedup_max: int = 1
     cmn_rel_range: tuple[float, float] = (0.01, 0.1)  # source "otb": σ_ξ relative to the box size, log-uniform; within [1e-4, 1]
     otb_sigma_v_rel: float = 0.03  # nominal σ_v relative to the measured box scale (OTB sources); in (0, 10]
     otb_sigma_w_rel: float = 3.0  # 1/s², nominal σ_w relative to the measured box scale (OTB sources); in (0, 1e4]
@@ -213,6 +217,10 @@ class EnvConfig:
             raise ValueError(f"box_size_range={self.box_size_range!r} must lie within box_size_bounds={self.box_size_bounds!r}")
         put("cmn_rel_range", check_range("cmn_rel_range", self.cmn_rel_range, 1e-4, 1.0))
         put("otb_tau", check_real("otb_tau", self.otb_tau, 1e-3, 1.0))
+        put("otb_speedup_max", check_integer("otb_speedup_max", self.otb_speedup_max, 1, 8))
+        if self.otb_speedup_max > 1 and self.source not in ("otb", "otb_tracker", "mix"):
+            raise ValueError(f"otb_speedup_max={self.otb_speedup_max} with source={self.source!r}: allowed only with "
+                             "source 'otb', 'otb_tracker' or 'mix' (its OTB parts); leave the default 1 otherwise")
         put("otb_sigma_v_rel", check_real("otb_sigma_v_rel", self.otb_sigma_v_rel, 0.0, 10.0, open_low=True))
         put("otb_sigma_w_rel", check_real("otb_sigma_w_rel", self.otb_sigma_w_rel, 0.0, 1e4, open_low=True))
         put("sigma_decades", check_real("sigma_decades", self.sigma_decades, 0.0, 3.0, open_low=True))

@@ -5,7 +5,8 @@ draws the noise seed from its own ``np_random`` and the source derives the rest 
 tracker, the part of a "mix") unless ``reset(options=...)`` pins them, so paired comparisons can replay
 exactly the same episode. The generators: ``default_rng(noise_seed)`` the sim scenario and noise,
 ``(noise_seed, 0)`` the OTB sequence, ``(noise_seed, 1)`` the "otb" CMN, ``(noise_seed, 2)`` the tracker,
-``(noise_seed, 3)`` the part of a "mix" — independent streams, so adding trackers or a mix changes none of
+``(noise_seed, 3)`` the part of a "mix", ``(noise_seed, 4)`` the frame stride of an OTB training episode
+(``otb_speedup_max``) — independent streams, so adding trackers or a mix changes none of
 the others.
 
 An episode keeps what identifies it (``meta``: sequence, noise seed, τ, tracker — shown to the agent at
@@ -36,6 +37,9 @@ from envs.episodes.episode import Episode, Source, rule_nominal
 from envs.episodes.features import box_scale
 from envs.episodes.video_source import VideoSource
 from filters.horizon import rule_horizon
+
+
+SPEEDUP_MIN_FRAMES = 64  # frames an OTB training episode keeps at the least when played at a stride > 1
 
 
 def _log_uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
@@ -203,19 +207,34 @@ class OTBSource(Source):
             raise ValueError(f"options['sequence']={name!r} has {len(gt)} frames; this env needs at least "
                              f"{self.min_frames} (sequences shorter than that are left out of its pool)")
         meta: dict[str, Any] = {"sequence": name, "noise_seed": noise_seed, "tau": cfg.otb_tau}
+        frames = slice(None)
+        if cfg.otb_speedup_max > 1 and cfg.split == "train":
+            frames = self._speedup(len(gt), noise_seed)
+            meta.update(stride=frames.step, offset=frames.start)
         scenario: dict[str, Any] = {}
         if cfg.source == "otb":
             rng = np.random.default_rng((noise_seed, 1))  # independent of the sequence pick above
             psi = float(rng.uniform(*cfg.psi_range))
             sigma_rel = _log_uniform(rng, cfg.cmn_rel_range)
-            track = replay_synthetic(gt, psi=psi, sigma_rel=sigma_rel, rng=rng, tau=cfg.otb_tau)
+            track = replay_synthetic(gt[frames], psi=psi, sigma_rel=sigma_rel, rng=rng, tau=cfg.otb_tau)
             scenario.update(psi=psi, sigma_rel=sigma_rel)
         else:
-            track = replay_tracker(gt, self.dataset.tracker_boxes(tracker, name), tau=cfg.otb_tau)
+            boxes = self.dataset.tracker_boxes(tracker, name)
+            track = replay_tracker(gt[frames], boxes[frames], tau=cfg.otb_tau)
             meta.update(tracker=tracker)
         scale = box_scale(track.y)
         nominal = rule_nominal(cfg, cfg.otb_sigma_v_rel * scale, cfg.otb_sigma_w_rel * scale, track.tau)
         return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta, scenario=scenario)
+
+    def _speedup(self, n_frames: int, noise_seed: int) -> slice:
+        """The frames a training episode of ``n_frames`` plays (class docstring): every k-th from offset j."""
+        rng = np.random.default_rng((noise_seed, 4))
+        stride = int(rng.integers(1, self.cfg.otb_speedup_max + 1))
+        keep = max(SPEEDUP_MIN_FRAMES, self.min_frames)
+        while stride > 1 and len(range(stride - 1, n_frames, stride)) < keep:  # strides (≤ 8), not time
+            stride -= 1
+        offset = int(rng.integers(stride))
+        return slice(offset, None, stride)
 
 
 class MixSource(Source):
@@ -240,7 +259,8 @@ class MixSource(Source):
         for name, weight in zip(MIX_SOURCES, cfg.mix_weights):
             if weight > 0:
                 part = replace(cfg, source=name, mix_weights=(1.0, 1.0, 1.0),
-                               trackers=cfg.trackers if name == "otb_tracker" else None)
+                               trackers=cfg.trackers if name == "otb_tracker" else None,
+                               otb_speedup_max=1 if name == "sim" else cfg.otb_speedup_max)
                 self.parts[name] = SimSource(part) if name == "sim" else OTBSource(part, dataset)
         self.block = self.parts["sim"].block if "sim" in self.parts else 1
         self.trackers = self.parts["otb_tracker"].trackers if "otb_tracker" in self.parts else ()
