@@ -229,10 +229,8 @@ class OTBSource(Source):
     def _speedup(self, n_frames: int, noise_seed: int) -> slice:
         """The frames a training episode of ``n_frames`` plays (class docstring): every k-th from offset j."""
         rng = np.random.default_rng((noise_seed, 4))
-        stride = int(rng.integers(1, self.cfg.otb_speedup_max + 1))
-        keep = max(SPEEDUP_MIN_FRAMES, self.min_frames)
-        while stride > 1 and len(range(stride - 1, n_frames, stride)) < keep:  # strides (≤ 8), not time
-            stride -= 1
+        drawn = int(rng.integers(1, self.cfg.otb_speedup_max + 1))
+        stride = max(1, min(drawn, n_frames // max(SPEEDUP_MIN_FRAMES, self.min_frames)))  # every offset keeps n // k
         offset = int(rng.integers(stride))
         return slice(offset, None, stride)
 
