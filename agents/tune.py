@@ -63,7 +63,7 @@ if TYPE_CHECKING:
     from agents.runs import SB3Policy
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"
-DEFAULT_PRETRAINED = "otb_tracker_ufir_cmn"
+DEFAULT_PRETRAINED = "otb_tracker_kf_cmn"  # chosen on the val split (README, smoothing section)
 TAU_RANGE = (1e-3, 1.0)  # s, the envs' range of frame intervals
 MIN_FRAMES = 8  # the envs' shortest track
 MIN_MEASURED = 2  # a box scale and one difference

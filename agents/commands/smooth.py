@@ -8,7 +8,7 @@ tracker's boxes alone (never the ground truth).
 --results holds one <Sequence>.txt per sequence (x,y,w,h per line, 1-based OTB pixels; 0,0,0,0 = no box), read
 by the OTB readers (a malformed file stops the run with file:line, exit status 2, nothing written). Tuner:
 --model RUN_DIR (a scripts/train.py run of bboxtune/FilterTune-v0) or --pretrained NAME (agents/pretrained);
-neither: the pretrained tracker-output tuner otb_tracker_ufir_cmn. --tau: the frame interval in s (default:
+neither: the pretrained tracker-output tuner otb_tracker_kf_cmn. --tau: the frame interval in s (default:
 the tuner's otb_tau, 1/30 s). Every sequence must have at least 8 frames, 2 of them with a box.
 
 --out (absent or empty; it appears complete or not at all) receives one <Sequence>.txt per input file, same

@@ -106,10 +106,10 @@ def test_the_default_is_the_tracker_output_tuner(tmp_path, monkeypatch):
     monkeypatch.setattr(pretrained, "ROOT", tmp_path)
     with pytest.raises(ValueError, match=f"{tune_module.DEFAULT_PRETRAINED}' is not installed; available: none"):
         agents.tune(_track(), 1 / 30)
-    shutil.copytree(os.path.join(REPO, "agents/pretrained/sim_kf_cmn"), tmp_path / "otb_tracker_kf_cmn")
-    shutil.copytree(os.path.join(REPO, "agents/pretrained/sim_ufir_cmn"), tmp_path / tune_module.DEFAULT_PRETRAINED)
-    assert set(agents.tune(_track(), 1 / 30)) == {"psi", "horizon"}
-    assert set(agents.tune(_track(), 1 / 30, backend="kf_cmn")) == {"psi", "sigma_w", "sigma_v"}
+    shutil.copytree(os.path.join(REPO, "agents/pretrained/sim_kf_cmn"), tmp_path / tune_module.DEFAULT_PRETRAINED)
+    shutil.copytree(os.path.join(REPO, "agents/pretrained/sim_ufir_cmn"), tmp_path / "otb_tracker_ufir_cmn")
+    assert set(agents.tune(_track(), 1 / 30)) == {"psi", "sigma_w", "sigma_v"}
+    assert set(agents.tune(_track(), 1 / 30, backend="ufir_cmn")) == {"psi", "horizon"}
 
 
 @pytest.mark.parametrize(("kwargs", "match"), [

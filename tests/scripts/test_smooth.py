@@ -92,12 +92,12 @@ def test_default_tuner_is_the_tracker_output_one(tmp_path, monkeypatch, capsys):
     with pytest.raises(SystemExit) as info:
         run("--results", tmp_path / "SiamX", "--out", tmp_path / "out")
     assert info.value.code == 2 and not (tmp_path / "out").exists()
-    assert "--pretrained: pretrained tuner 'otb_tracker_ufir_cmn' is not installed" in capsys.readouterr().err
-    shutil.copytree(REPO / "agents/pretrained/sim_ufir_cmn", tmp_path / "shipped/otb_tracker_ufir_cmn")
+    assert "--pretrained: pretrained tuner 'otb_tracker_kf_cmn' is not installed" in capsys.readouterr().err
+    shutil.copytree(REPO / "agents/pretrained/sim_kf_cmn", tmp_path / "shipped/otb_tracker_kf_cmn")
     assert run("--results", tmp_path / "SiamX", "--out", tmp_path / "out", "--tau", TAU) == 0
-    assert "with otb_tracker_ufir_cmn (ufir_cmn" in capsys.readouterr().out
+    assert "with otb_tracker_kf_cmn (kf_cmn" in capsys.readouterr().out
     reference = tmp_path / "reference"
-    run("--results", tmp_path / "SiamX", "--out", reference, "--model", REPO / "docs/results/ufir_cmn/run", "--tau", TAU)
+    run("--results", tmp_path / "SiamX", "--out", reference, "--model", REPO / "docs/results/kf_cmn/run", "--tau", TAU)
     for name in ("Alpha.txt", "beta_1.txt", "Gamma.txt", "params.csv"):
         assert (tmp_path / "out" / name).read_text() == (reference / name).read_text()
 
