@@ -40,11 +40,12 @@ def test_training_episodes_play_every_kth_frame(source: str) -> None:
         gt = dataset.groundtruth(meta["sequence"])[j::k]
         if source == "otb":
             rng = np.random.default_rng((seed, 1))
-            psi, sigma_rel = rng.uniform(0.0, 0.95), np.exp(rng.uniform(np.log(0.01), np.log(0.1)))
-            expected = replay_synthetic(gt, psi=psi, sigma_rel=sigma_rel, rng=rng, tau=1 / 30)
+            psi, sigma_rel = rng.uniform(*src.cfg.psi_range), np.exp(rng.uniform(*np.log(src.cfg.cmn_rel_range)))
+            expected = replay_synthetic(gt, psi=psi, sigma_rel=sigma_rel, rng=rng, tau=src.cfg.otb_tau)
             assert episode.scenario == {"psi": psi, "sigma_rel": sigma_rel}
         else:
-            expected = replay_tracker(gt, dataset.tracker_boxes(meta["tracker"], meta["sequence"])[j::k], tau=1 / 30)
+            boxes = dataset.tracker_boxes(meta["tracker"], meta["sequence"])[j::k]
+            expected = replay_tracker(gt, boxes, tau=src.cfg.otb_tau)
         np.testing.assert_array_equal(episode.truth, expected.truth)
         np.testing.assert_array_equal(episode.y, expected.y)
         assert len(episode.y) >= SPEEDUP_MIN_FRAMES or k == 1
