@@ -50,6 +50,9 @@ MODEL_KEYS = {"algo": str, "env_id": str, "env_kwargs": dict, "hyperparams": dic
 RESUME_KEYS = {**MODEL_KEYS, "total_timesteps": int, "eval_freq": int, "eval_episodes": int, "checkpoint_freq": int,
                "tensorboard": bool}
 ENV_ERRORS = (gym.error.Error, ValueError, TypeError, KeyError, OSError)  # what a bad env id / env kwargs raise
+# a feature whose VecNormalize variance is below this did not vary in training: float32 rounding of a constant
+# gives ~4e-8 (e.g. log_n_frames of 500-frame tracks); the smallest real one (acf3_d2_pos) is ~3e-3
+CONSTANT_FEATURE_VAR = 1e-6
 
 
 def make_env(env_id: str, env_kwargs: dict[str, Any], split: str = "test") -> gym.Env:
@@ -184,8 +187,28 @@ def env_spaces_venv(cfg: dict[str, Any], where: Path) -> VecEnv:
         raise RunError(f"{where}: env {cfg['env_id']} with env_kwargs {cfg['env_kwargs']} cannot be built ({err})") from None
 
 
+def hold_constant_features(obs: np.ndarray, normalizer: VecNormalize) -> np.ndarray:
+    """``obs`` (n, F) with every feature that did not vary in training (VecNormalize variance below
+    :data:`CONSTANT_FEATURE_VAR`) set to its training mean.
+
+    Such a feature (``log_n_frames`` when every training track had 500 frames, ``log_tau`` at one frame rate,
+    ``frac_missing`` without gaps) told the policy nothing, and VecNormalize would divide any other value by
+    √(var + ε) ≈ 2·10⁻⁴ and saturate it at ±``clip_obs``: an input the network never saw, which made
+    sim-trained tuners collapse on OTB tracks of other lengths (measured: ufir_cmn, ``motion=otb
+    sim_noise=box``, seed 1 on OTB replay, −0.322 against the rule saturated, +0.526 held). Holding it at the
+    training value scores the track as the policy was trained to, from the features that did vary."""
+    rms = normalizer.obs_rms
+    constant = np.asarray(rms.var) < CONSTANT_FEATURE_VAR
+    if not constant.any():
+        return obs
+    held = np.array(obs, dtype=np.float32)
+    held[..., constant] = np.asarray(rms.mean, dtype=np.float32)[constant]
+    return held
+
+
 class SB3Policy(ObsPolicy):
-    """A trained SB3 tuner: VecNormalize's observation statistics, then the deterministic policy.
+    """A trained SB3 tuner: VecNormalize's observation statistics, then the deterministic policy. Features that
+    were constant in training are held at their training value (:func:`hold_constant_features`).
 
     A recurrent policy (``ppo_lstm``) keeps its LSTM state across the steps of an episode in :meth:`act`
     (reset by :meth:`begin_episode`); :meth:`predict` treats every row as the first step of its own episode."""
@@ -199,7 +222,9 @@ class SB3Policy(ObsPolicy):
 
     def _normalized(self, obs: np.ndarray) -> np.ndarray:
         obs = np.asarray(obs, dtype=np.float32)
-        return self.normalizer.normalize_obs(obs) if self.normalizer is not None else obs
+        if self.normalizer is None:
+            return obs
+        return self.normalizer.normalize_obs(hold_constant_features(obs, self.normalizer))
 
     def predict(self, obs: np.ndarray) -> np.ndarray:
         obs = self._normalized(obs)
