@@ -42,6 +42,7 @@ from agents.hyperparams import load_hyperparams
 from agents.run_files import RunError, load_normalizer
 from agents.safe_load import load_model
 from agents.splits import SplitSeeds, train_seeds
+from envs.episodes.features import FEATURE_NAMES
 from envs.vector import BATCHED_IDS, TuneBatch
 
 CONFIG = "config.yml"
@@ -50,9 +51,12 @@ MODEL_KEYS = {"algo": str, "env_id": str, "env_kwargs": dict, "hyperparams": dic
 RESUME_KEYS = {**MODEL_KEYS, "total_timesteps": int, "eval_freq": int, "eval_episodes": int, "checkpoint_freq": int,
                "tensorboard": bool}
 ENV_ERRORS = (gym.error.Error, ValueError, TypeError, KeyError, OSError)  # what a bad env id / env kwargs raise
-# a feature whose VecNormalize variance is below this did not vary in training: float32 rounding of a constant
-# gives ~4e-8 (e.g. log_n_frames of 500-frame tracks); the smallest real one (acf3_d2_pos) is ~3e-3
+# a feature whose VecNormalize variance, net of the running statistics' prior, is below this did not vary in
+# training; the smallest real one in the shipped tuners (acf3_d2_pos) is ~3e-3
 CONSTANT_FEATURE_VAR = 1e-6
+# SB3's RunningMeanStd starts from mean 0, var 1 with this count (its epsilon), so a feature constant at c ends with
+# var ≈ PRIOR_COUNT · (1 + c²) / count: 4e-8 for log_n_frames of 500-frame tracks after 1e5 steps, 3e-5 after 64
+PRIOR_COUNT = 1e-4
 
 
 def make_env(env_id: str, env_kwargs: dict[str, Any], split: str = "test") -> gym.Env:
@@ -188,8 +192,8 @@ def env_spaces_venv(cfg: dict[str, Any], where: Path) -> VecEnv:
 
 
 def hold_constant_features(obs: np.ndarray, normalizer: VecNormalize) -> np.ndarray:
-    """``obs`` (n, F) with every feature that did not vary in training (VecNormalize variance below
-    :data:`CONSTANT_FEATURE_VAR`) set to its training mean.
+    """``obs`` (n, F) with every feature that did not vary in training (:func:`constant_features`) set to its
+    training mean.
 
     Such a feature (``log_n_frames`` when every training track had 500 frames, ``log_tau`` at one frame rate,
     ``frac_missing`` without gaps) told the policy nothing, and VecNormalize would divide any other value by
@@ -197,13 +201,35 @@ def hold_constant_features(obs: np.ndarray, normalizer: VecNormalize) -> np.ndar
     sim-trained tuners collapse on OTB tracks of other lengths (measured: ufir_cmn, ``motion=otb
     sim_noise=box``, seed 1 on OTB replay, −0.322 against the rule saturated, +0.526 held). Holding it at the
     training value scores the track as the policy was trained to, from the features that did vary."""
-    rms = normalizer.obs_rms
-    constant = np.asarray(rms.var) < CONSTANT_FEATURE_VAR
+    constant = constant_features(normalizer)
     if not constant.any():
         return obs
     held = np.array(obs, dtype=np.float32)
-    held[..., constant] = np.asarray(rms.mean, dtype=np.float32)[constant]
+    held[..., constant] = np.asarray(normalizer.obs_rms.mean, dtype=np.float32)[constant]
     return held
+
+
+def constant_features(normalizer: VecNormalize) -> np.ndarray:
+    """Mask (F,) of the features that did not vary in training: VecNormalize variance below
+    :data:`CONSTANT_FEATURE_VAR` plus twice what the running statistics' prior leaves in a constant feature
+    (:data:`PRIOR_COUNT`)."""
+    rms = normalizer.obs_rms
+    prior = 2.0 * PRIOR_COUNT * (1.0 + np.square(rms.mean)) / max(float(rms.count), PRIOR_COUNT)
+    return np.asarray(rms.var) < CONSTANT_FEATURE_VAR + prior
+
+
+def describe_held_features(normalizers: dict[str, VecNormalize | None]) -> str:
+    """Which inputs each trained tuner (name → its VecNormalize) holds at its training value, for a summary's
+    settings ("none" if no tuner holds any): ``"ppo, ppo_best: frac_missing, log_n_frames"``; features past
+    ``FEATURE_NAMES`` (the re-tuning observation's) as ``obs[i]``."""
+    groups: dict[tuple[str, ...], list[str]] = {}
+    for name, normalizer in normalizers.items():
+        held = constant_features(normalizer) if normalizer is not None else np.zeros(0, dtype=bool)
+        features = tuple(FEATURE_NAMES[i] if i < len(FEATURE_NAMES) else f"obs[{i}]" for i in np.flatnonzero(held))
+        groups.setdefault(features, []).append(name)
+    if not any(groups):
+        return "none"
+    return "; ".join(f"{', '.join(names)}: {', '.join(features) or 'none'}" for features, names in groups.items())
 
 
 class SB3Policy(ObsPolicy):

@@ -51,6 +51,8 @@ scored on the same episodes as <algo>_s<seed> / <algo>_best_s<seed> beside one s
 adds their IQM and mean across seeds with stratified bootstrap CIs (rliable's estimator, agents.seeds_report)
 and, for FilterTune-v0 runs, performance_profile.png. The run's models are loaded without unpickling anything and
 checked against its config.yml (agents.safe_load) and against the evaluation env before any baseline is fitted;
+an input that never varied in a model's training is held at its training value (agents.runs.hold_constant_features)
+and summary.md names those inputs;
 an old run whose statistics are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can
 run code: only for runs you trust). Bad arguments or run files: one line naming them, exit status 2.
 """
@@ -76,7 +78,7 @@ from agents.plots import gain_boxplot, otb_curves, performance_profile, trajecto
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.commands.compare_retune import ONE_STEP_ENV, RETUNE_ENV, compare_retune, load_oneshot
 from agents.run_files import RunError
-from agents.runs import ENV_ERRORS, SB3Policy, check_free, load_config, make_env
+from agents.runs import ENV_ERRORS, SB3Policy, check_free, describe_held_features, load_config, make_env
 from agents.safe_load import check_env_match
 from agents.seeds_report import profile_curves, seeds_section
 from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
@@ -293,6 +295,7 @@ def run(argv: list[str] | None = None) -> Path:
     other = "oracle_auc: the same search maximising success AUC" if config.reward == "rmse" else \
         "oracle_rmse: the same search minimising RMSE"
     settings_md = {"command": f"`{command}`", "model": models[2],
+                   "inputs held at their training value": describe_held_features({p.name: p.normalizer for p in learned}),
                    "env": f"`{env_kwargs}`" + (f" (changed from the run's: {changed})" if changed else
                                                 " (the run's own)"),
                    "test episodes": describe_episodes(args, source, episodes),

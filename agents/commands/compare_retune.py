@@ -19,7 +19,7 @@ from agents.report_retune import retune_tables
 from agents.retune_eval import (ONESHOT_LEARNED, ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
                                 evaluate_retune, window_oracle)
 from agents.run_files import RunError
-from agents.runs import ENV_ERRORS, SB3Policy, load_config, make_env
+from agents.runs import ENV_ERRORS, SB3Policy, describe_held_features, load_config, make_env
 from agents.safe_load import check_env_match
 from agents.seeds_report import seeds_section
 from agents.splits import EpisodeSpec, train_seeds
@@ -90,6 +90,10 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
     settings_md = {"command": f"`{command}`", "model": models_described,
                    "oneshot_learned": f"`{args.oneshot_model}` (its final model)" if oneshot else "not scored (no --oneshot-model)",
+                   "inputs held at their training value": describe_held_features(
+                       {**{p.name: p.normalizer for p in learned},
+                        **({ONESHOT_LEARNED: oneshot.policy.normalizer} if oneshot and isinstance(oneshot.policy, SB3Policy)
+                           else {})}),
                    WINDOW_AMORTISED: f"{', '.join(p.name for p in regressors)}: per-window regressor(s) "
                                      f"(agents.window_regressor, {len(regressors[0].candidates)} candidate actions) fitted "
                                      f"on {args.train_episodes} train-split episodes each (seeds {args.seed} … "

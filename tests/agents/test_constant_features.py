@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-from agents.runs import CONSTANT_FEATURE_VAR, SB3Policy, hold_constant_features
+from agents.runs import SB3Policy, constant_features, describe_held_features, hold_constant_features
 
 MEAN = np.array([0.0, np.log(500.0), 1.0])  # feature 1: log_n_frames of 500-frame training tracks
-VAR = np.array([1.0, 4e-8, 3e-3])  # 4e-8: what float32 rounding of a constant leaves; 3e-3: a real small variance
+VAR = np.array([1.0, 4e-8, 3e-3])  # 4e-8: what the running prior leaves in a constant after 1e5 steps; 3e-3: a real small variance
 
 
 class _BoxEnv(gym.Env):
@@ -27,9 +27,9 @@ class _BoxEnv(gym.Env):
         return np.zeros(3, np.float32), 0.0, True, False, {}
 
 
-def _normalizer(var: np.ndarray = VAR) -> VecNormalize:
+def _normalizer(var: np.ndarray = VAR, count: float = 1e5) -> VecNormalize:
     norm = VecNormalize(DummyVecEnv([_BoxEnv]), training=False, norm_reward=False)
-    norm.obs_rms.mean, norm.obs_rms.var = MEAN.copy(), var.copy()
+    norm.obs_rms.mean, norm.obs_rms.var, norm.obs_rms.count = MEAN.copy(), var.copy(), count
     return norm
 
 
@@ -57,10 +57,23 @@ def test_without_holding_vecnormalize_saturates_a_constant_feature() -> None:
     assert norm.normalize_obs(hold_constant_features(obs, norm))[0, 1] == pytest.approx(0.0, abs=1e-3)
 
 
-@pytest.mark.parametrize("var", [np.array([1.0, 2e-6, 3e-3]), np.array([1.0, CONSTANT_FEATURE_VAR, 1.0])])
-def test_features_that_varied_are_untouched(var: np.ndarray) -> None:
+def test_features_that_varied_are_untouched() -> None:
     obs = np.array([[0.5, 9.0, 1.2]], dtype=np.float32)
-    assert np.array_equal(hold_constant_features(obs, _normalizer(var)), obs)
+    assert np.array_equal(hold_constant_features(obs, _normalizer(np.array([1.0, 2e-6, 3e-3]))), obs)
+
+
+@pytest.mark.parametrize("steps", [64, 5000])
+def test_a_short_training_run_is_judged_net_of_the_running_statistics_prior(steps: int) -> None:
+    """SB3's running statistics start at mean 0, var 1: after 64 steps a constant feature still shows var ~3e-5."""
+    norm = _normalizer()
+    norm.obs_rms = type(norm.obs_rms)(shape=(3,))
+    rng = np.random.default_rng(0)
+    for _ in range(steps // 4):
+        batch = np.column_stack([rng.normal(size=4), np.full(4, np.log(100.0)), 1.0 + 0.05 * rng.normal(size=4)])
+        norm.obs_rms.update(batch)
+    if steps == 64:
+        assert norm.obs_rms.var[1] > 1e-6  # the prior, not the data: above the absolute threshold alone
+    assert constant_features(norm).tolist() == [False, True, False]
 
 
 def test_sb3_policy_feeds_the_held_features_to_the_model() -> None:
@@ -69,3 +82,10 @@ def test_sb3_policy_feeds_the_held_features_to_the_model() -> None:
     policy.predict(np.array([[0.5, np.log(100.0), 1.2]], dtype=np.float32))
     assert model.seen[0, 1] == pytest.approx(0.0, abs=1e-3)
     assert model.seen[0, 0] == pytest.approx(0.5, abs=1e-3)
+
+
+def test_summaries_name_the_held_inputs_per_tuner() -> None:
+    """Feature 1 is log_tau (envs.episodes.features.FEATURE_NAMES); a tuner without statistics holds nothing."""
+    norm = _normalizer()
+    assert describe_held_features({"ppo": norm, "ppo_best": norm, "sac": None}) == "ppo, ppo_best: log_tau; sac: none"
+    assert describe_held_features({"ppo": _normalizer(np.ones(3)), "sac": None}) == "none"
