@@ -194,8 +194,11 @@ def test_config_errors_stop_before_anything_is_written(tmp_path: Path) -> None:
     assert not out.exists()
 
 
-def test_same_seed_same_result(train: ModuleType, tiny_run: Path, tmp_path: Path) -> None:
+def test_same_seed_same_result(train: ModuleType, tiny_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     again = train.run([*TINY, "--out", str(tmp_path / "again")])
+    # every tiny track has 100 frames and no gap: the run reports the inputs a tuner will hold when applied elsewhere
+    assert "held at their training value wherever the tuner is applied): ppo: frac_missing, log_n_frames" in \
+        capsys.readouterr().out
     a, b = SB3Policy.load(tiny_run).model, SB3Policy.load(again).model
     for (name, p), (_, q) in zip(a.policy.state_dict().items(), b.policy.state_dict().items()):
         assert torch.equal(p, q), name
