@@ -180,6 +180,10 @@ class EnvConfig:
     # "track": a step's reward is the change of the reward of the track so far (its returns add up to the whole
     # track's reward, the evaluation's metric) | "window": the reward of the step's window alone
     retune_reward: str = "track"
+    # what a re-tuning step observes: "causal" (the frames already filtered: a filter behind a live tracker) |
+    # "offline" (a recorded track, all of whose measurements exist before the filter runs: the observation adds the
+    # measurement features of the coming window and of the whole track, envs.retune_env)
+    retune_view: str = "causal"
 
     def __post_init__(self) -> None:
         put = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731 (frozen: normalised values)
@@ -191,6 +195,7 @@ class EnvConfig:
         put("motion", check_choice("motion", self.motion, ("cv", "otb")))
         put("scenario", check_choice("scenario", self.scenario, SCENARIOS))
         put("retune_reward", check_choice("retune_reward", self.retune_reward, ("track", "window")))
+        put("retune_view", check_choice("retune_view", self.retune_view, ("causal", "offline")))
         put("sim_noise", check_choice("sim_noise", self.sim_noise, ("absolute", "box")))
         if self.sim_noise == "box" and (self.source not in ("sim", "mix") or self.scenario != "stationary"):
             raise ValueError(f"sim_noise='box' with source={self.source!r}, scenario={self.scenario!r}: allowed only "

@@ -52,7 +52,7 @@ def autocovariance(x: np.ndarray, lags: int) -> np.ndarray:
     m, T = x.shape[-2:]
     finite = np.isfinite(x)
     out = np.zeros((*x.shape[:-2], lags + 1))
-    if finite.all():
+    if T > 0 and finite.all():  # (an empty series takes the NaN-aware branch: no mean of an empty slice)
         c = x - x.mean(axis=-1, keepdims=True)
         for k in range(min(lags, T - 1) + 1):  # loop over lags (≤ 3), not time
             out[..., k] = np.einsum("...it,...it->...", c[..., k:], c[..., : T - k]) / ((T - k) * m)

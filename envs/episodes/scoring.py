@@ -36,6 +36,24 @@ def run_tracks(backend: str, ys: list[np.ndarray], taus: list[float], params: di
     return filters.track_positions(backend, ys, taus, _used(backend, params))
 
 
+def hold_missing(est: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
+    """Estimates (A, T, 4) with every missing row (any NaN) that follows an estimate replaced by the last estimate
+    before it (held), as a display behind a tracker keeps showing the last box. ``last`` (4,): the estimate shown
+    just before the first frame (a re-tuning window continuing a track), or None; rows before any estimate stay
+    NaN. An FIR filter has no estimate where its horizon holds too few measurements to determine the state (an
+    occlusion gap longer than the horizon): held, such frames are scored like every other candidate's instead of
+    being left out of that candidate's RMSE, which favoured short horizons through gaps."""
+    ok = np.isfinite(est).all(axis=-1)  # (A, T)
+    if ok.all():
+        return est
+    T = ok.shape[-1]
+    source = np.maximum.accumulate(np.where(ok, np.arange(T), -1), axis=-1)  # the last row with an estimate
+    out = np.take_along_axis(est, np.maximum(source, 0)[..., None], axis=-2)
+    before = source < 0
+    out[before] = np.nan if last is None else last
+    return out
+
+
 def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
     """Scores of estimates (A, T, 4) against the truth — (T, 4) shared by all rows (candidates on one
     episode) or (A, T, 4) (one episode per row) — all cx, cy, w, h; each value (A,).

@@ -96,3 +96,91 @@ def test_features_so_far_grow_into_the_one_shot_observation_of_the_whole_track(b
     assert not np.array_equal(first, whole)
     with pytest.raises(RuntimeError, match="reset"):
         gym.make(RETUNE).unwrapped.features_so_far()
+
+
+@pytest.mark.parametrize("backend", ["ufir_cmn", "kf_cmn"])
+def test_offline_view_adds_the_coming_window_and_the_whole_track(backend: str) -> None:
+    """retune_view="offline": the causal observation, then FEATURE_NAMES of the coming window's measurements (the
+    rule's estimates as pilot) and of the whole track (= FilterTune-v0's observation); zeros for the coming window
+    in the terminal observation. The causal part is the default observation, unchanged."""
+    from envs.episodes.features import FEATURE_NAMES, measurement_features
+
+    kwargs = dict(backend=backend, scenario="nonstationary", track_length=105, window=25)  # a last window of 5 frames
+    offline, causal = gym.make(RETUNE, retune_view="offline", **kwargs), gym.make(RETUNE, **kwargs)
+    n = len(FEATURE_NAMES)
+    assert offline.observation_space.shape[0] == causal.observation_space.shape[0] + 2 * n
+    obs, _ = offline.reset(options={"noise_seed": 5})
+    base, _ = causal.reset(options={"noise_seed": 5})
+    whole, _ = gym.make(TUNE, **kwargs).reset(options={"noise_seed": 5})
+    u = offline.unwrapped
+    ep, rule = u.episode, u.rule_estimates
+    done = False
+    while True:
+        np.testing.assert_array_equal(obs[: len(base)], base)
+        np.testing.assert_array_equal(obs[-n:], whole)
+        start = u.window_start
+        coming = obs[len(base): len(base) + n]
+        if done:
+            assert start == len(ep.y) and not coming.any()
+            break
+        end = min(start + 25, len(ep.y))
+        expected = measurement_features(ep.y[start:end], ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, rule[start:end])
+        np.testing.assert_allclose(coming, expected.astype(np.float32))
+        assert np.isfinite(obs).all()
+        action = offline.action_space.sample()
+        obs, _, done, _, _ = offline.step(action)
+        base = causal.step(action)[0]
+
+
+def test_offline_view_is_measurement_only() -> None:
+    """The offline observations of an episode do not change when its ground truth (and true scenario) do."""
+    from dataclasses import replace
+
+    kwargs = dict(scenario="nonstationary", track_length=100, window=20, retune_view="offline")
+    envs_ = [gym.make(RETUNE, **kwargs) for _ in range(2)]
+    seen = []
+    for k, env in enumerate(envs_):
+        obs, _ = env.reset(options={"noise_seed": 9})
+        u = env.unwrapped
+        if k:
+            u.episode = replace(u.episode, truth=u.episode.truth * 3.0 + 500.0, scenario={})
+        rows, done = [obs], False
+        while not done:
+            obs, _, done, _, _ = env.step(np.full(env.action_space.shape, 0.3, np.float32))
+            rows.append(obs)
+        seen.append(np.array(rows))
+    np.testing.assert_array_equal(seen[0], seen[1])
+
+
+def test_retune_view_is_checked() -> None:
+    with pytest.raises(ValueError, match="retune_view.*'causal', 'offline'"):
+        gym.make(RETUNE, retune_view="future")
+
+
+def test_hold_missing_shows_the_last_estimate() -> None:
+    from envs.episodes.scoring import hold_missing
+
+    est = np.arange(2 * 5 * 4, dtype=float).reshape(2, 5, 4)
+    est[0, 0], est[0, 2:4], est[1, :2] = np.nan, np.nan, np.nan
+    np.testing.assert_array_equal(hold_missing(est)[..., 0], [[np.nan, 4, 4, 4, 16], [np.nan, np.nan, 28, 32, 36]])
+    np.testing.assert_array_equal(hold_missing(est, np.full(4, -1.0))[:, :2, 1], [[-1, 5], [-1, -1]])
+    clean = np.ones((1, 3, 4))
+    assert hold_missing(clean) is clean
+
+
+def test_a_gap_longer_than_the_horizon_is_scored_with_the_last_estimate_held() -> None:
+    """A sim episode whose gap covers frames 1–20 (only frame 0 measured before it): the shortest horizon has no
+    estimate there; the window is scored with the warm-up's last estimate held, so the reward is finite (it was
+    NaN — every frame of the track so far left out — and crashed PPO training) and, as the rule's, covers every
+    frame with ground truth."""
+    env = gym.make(RETUNE, scenario="nonstationary", window=10)
+    env.reset(options={"noise_seed": 2091389876304249611})
+    u = env.unwrapped
+    assert [1, 21] in [list(g) for g in u.episode.scenario["gaps"]]
+    shortest = -np.ones(env.action_space.shape, np.float32)
+    assert u.physical(u.action_map.to_params(shortest[None], u.episode.nominal))["horizon"] <= 10
+    _, reward, *_ , info = env.step(shortest)
+    assert np.isfinite(reward) and np.isfinite(info["rmse"])
+    est = u.estimates
+    assert np.isfinite(est[:20]).all()
+    np.testing.assert_array_equal(est[10:20], np.broadcast_to(est[9], (10, 4)))  # held through the gap

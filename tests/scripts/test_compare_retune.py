@@ -63,3 +63,23 @@ def test_oneshot_model_must_be_a_one_step_run(runs: tuple[Path, Path, Path], tmp
         compare.run(["--model", str(retune), "--oneshot-model", str(retune), "--out", str(tmp_path / "c")])
     assert exc.value.code == 2
     assert "--oneshot-model" in capsys.readouterr().err and not (tmp_path / "c").exists()
+
+
+def test_an_offline_view_run_is_scored_and_a_causal_model_is_refused_there(train, runs: tuple[Path, Path, Path],  # noqa: F811
+                                                                           tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """retune_view=offline travels with the run (config.yml): the sequential model and the window regressor it fits
+    observe the offline view; a causal model asked on it is refused (observation shape), nothing written."""
+    causal, oneshot, _ = runs
+    offline = train.run([*_tiny("--env", "bboxtune/FilterRetune-v0", "--env-kwargs", "window:40", "retune_view:offline"),
+                         "--out", str(tmp_path / "off")])
+    out = compare.run(["--model", str(offline), "--oneshot-model", str(oneshot), "--episodes", "2", "--oracle-budget", "16",
+                       "--bootstrap", "50", "--train-episodes", "11", "--out", str(tmp_path / "c")])
+    with open(out / "results.csv") as fh:
+        methods = {r["method"] for r in csv.DictReader(fh)}
+    assert {"ppo", "window_amortised", "oneshot_learned"} <= methods
+    assert "'retune_view': 'offline'" in (out / "summary.md").read_text()
+    with pytest.raises(SystemExit) as exc:
+        compare.run(["--model", str(causal), "--env-kwargs", "retune_view:offline", "--episodes", "2",
+                     "--out", str(tmp_path / "refused")])
+    assert exc.value.code == 2
+    assert "observation" in capsys.readouterr().err and not (tmp_path / "refused").exists()

@@ -98,6 +98,20 @@ def test_features_finite_on_degenerate_input() -> None:
     assert f[FEATURE_NAMES.index("frac_missing")] == pytest.approx(0.1)
 
 
+@pytest.mark.parametrize("n", [1, 2, 3])
+def test_features_of_a_few_frames_are_finite_without_warnings(n: int) -> None:
+    """1–3 frames (a re-tuning env's last window can be that short): no difference series or an empty one — the
+    features are the floors, computed without a mean of an empty slice."""
+    import warnings
+
+    y = np.column_stack([np.arange(n) + 50.0, np.arange(n) * 2.0 + 40.0, np.full(n, 20.0), np.full(n, 30.0)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        f = measurement_features(y, 0.05, 1.0, 1.0, y + 0.5)
+    assert np.all(np.isfinite(f))
+    assert f[FEATURE_NAMES.index("log_n_frames")] == pytest.approx(np.log(n))
+
+
 def test_sigma_estimates_recover_white_noise_statistics() -> None:
     rng = np.random.default_rng(3)
     _, y = _track(rng, T=20000, sigma_v=2.0, sigma_w=30.0)
