@@ -168,7 +168,8 @@ class FilterRetuneEnv(TrackEnv):
         self.episode = ep
         self._rule_params = self.rule_params(ep)
         self._rule_est = hold_missing(run_positions(self.config.backend, ep.y, ep.tau, self._rule_params))[0]
-        self._track_features = self._features(0, len(ep.y))
+        offline = self.config.retune_view == "offline"
+        self._track_features = self._features(0, len(ep.y)) if offline else None  # the same for every step
         self._action = self.action_map.to_actions(self._rule_params, ep.nominal)[0].astype(np.float32)
         self._estimate = np.full_like(ep.y, np.nan)
         self._carry = None
@@ -190,8 +191,7 @@ class FilterRetuneEnv(TrackEnv):
         n = len(params["horizon"])
         flt = filters.make(self.config.backend, box_model(ep.tau), **{k: params[k] for k in ACCEPTS[self.config.backend]})
         est, after = flt.positions_from(np.broadcast_to(ep.y[start:end], (n, end - start, 4)), carry)
-        shown = self._estimate[start - 1] if start > 0 else None  # the last box shown before the window
-        return hold_missing(est, None if shown is None or np.isnan(shown).any() else shown), after
+        return hold_missing(est, self._estimate[start - 1] if start > 0 else None), after  # the last box shown
 
     def _advance(self, params: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         est, self._carry = self._run_window(params, self._carry)

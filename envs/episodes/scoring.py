@@ -40,9 +40,10 @@ def hold_missing(est: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
     """Estimates (A, T, 4) with every missing row (any NaN) that follows an estimate replaced by the last estimate
     before it (held), as a display behind a tracker keeps showing the last box. ``last`` (4,): the estimate shown
     just before the first frame (a re-tuning window continuing a track), or None; rows before any estimate stay
-    NaN. An FIR filter has no estimate where its horizon holds too few measurements to determine the state (an
-    occlusion gap longer than the horizon): held, such frames are scored like every other candidate's instead of
-    being left out of that candidate's RMSE, which favoured short horizons through gaps."""
+    NaN (as they do when ``last`` is itself missing). An FIR filter has no estimate where its horizon holds too few
+    measurements to determine the state (an occlusion gap longer than the horizon): held, such frames are scored
+    like every other candidate's instead of being left out of that candidate's RMSE, which favoured short horizons
+    through gaps."""
     ok = np.isfinite(est).all(axis=-1)  # (A, T)
     if ok.all():
         return est

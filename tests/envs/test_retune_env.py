@@ -164,6 +164,7 @@ def test_hold_missing_shows_the_last_estimate() -> None:
     est[0, 0], est[0, 2:4], est[1, :2] = np.nan, np.nan, np.nan
     np.testing.assert_array_equal(hold_missing(est)[..., 0], [[np.nan, 4, 4, 4, 16], [np.nan, np.nan, 28, 32, 36]])
     np.testing.assert_array_equal(hold_missing(est, np.full(4, -1.0))[:, :2, 1], [[-1, 5], [-1, -1]])
+    np.testing.assert_array_equal(hold_missing(est, np.full(4, np.nan)), hold_missing(est))
     clean = np.ones((1, 3, 4))
     assert hold_missing(clean) is clean
 
