@@ -34,6 +34,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
 import envs  # noqa: F401  (registers the env ids)
+from envs import ENV_IDS
 from agents.algos import ALGOS, RECURRENT
 from agents.baselines import ObsPolicy
 from agents.batched import TuneVecEnv
@@ -42,7 +43,9 @@ from agents.hyperparams import load_hyperparams
 from agents.run_files import RunError, load_normalizer
 from agents.safe_load import load_model
 from agents.splits import SplitSeeds, train_seeds
+from envs.episodes.config import EnvConfig
 from envs.episodes.features import FEATURE_NAMES
+from envs.retune_env import retune_observation_names
 from envs.vector import BATCHED_IDS, TuneBatch
 
 CONFIG = "config.yml"
@@ -51,6 +54,7 @@ MODEL_KEYS = {"algo": str, "env_id": str, "env_kwargs": dict, "hyperparams": dic
 RESUME_KEYS = {**MODEL_KEYS, "total_timesteps": int, "eval_freq": int, "eval_episodes": int, "checkpoint_freq": int,
                "tensorboard": bool}
 ENV_ERRORS = (gym.error.Error, ValueError, TypeError, KeyError, OSError)  # what a bad env id / env kwargs raise
+RETUNE_ID = ENV_IDS[1]  # bboxtune/FilterRetune-v0
 # a feature whose VecNormalize variance, net of the running statistics' prior, is below this did not vary in
 # training; the smallest real one in the shipped tuners (acf3_d2_pos) is ~3e-3
 CONSTANT_FEATURE_VAR = 1e-6
@@ -218,14 +222,23 @@ def constant_features(normalizer: VecNormalize) -> np.ndarray:
     return np.asarray(rms.var) < CONSTANT_FEATURE_VAR + prior
 
 
-def describe_held_features(normalizers: dict[str, VecNormalize | None]) -> str:
+def observation_names(env_id: str, env_kwargs: dict[str, Any]) -> tuple[str, ...]:
+    """The names of the observation entries of ``env_id`` built with ``env_kwargs`` (FilterTune-v0:
+    ``FEATURE_NAMES``; FilterRetune-v0: :func:`envs.retune_env.retune_observation_names`)."""
+    return retune_observation_names(EnvConfig.from_kwargs(**env_kwargs)) if env_id == RETUNE_ID else FEATURE_NAMES
+
+
+def describe_held_features(normalizers: dict[str, VecNormalize | None],
+                           names: dict[str, tuple[str, ...]] | None = None) -> str:
     """Which inputs each trained tuner (name → its VecNormalize) holds at its training value, for a summary's
-    settings ("none" if no tuner holds any): ``"ppo, ppo_best: frac_missing, log_n_frames"``; features past
-    ``FEATURE_NAMES`` (the re-tuning observation's) as ``obs[i]``."""
+    settings ("none" if no tuner holds any): ``"ppo, ppo_best: frac_missing, log_n_frames"``, named by ``names``
+    (tuner → its observation's names, :func:`observation_names`; default ``FEATURE_NAMES``, entries past the
+    names as ``obs[i]``)."""
     groups: dict[tuple[str, ...], list[str]] = {}
     for name, normalizer in normalizers.items():
         held = constant_features(normalizer) if normalizer is not None else np.zeros(0, dtype=bool)
-        features = tuple(FEATURE_NAMES[i] if i < len(FEATURE_NAMES) else f"obs[{i}]" for i in np.flatnonzero(held))
+        known = (names or {}).get(name, FEATURE_NAMES)
+        features = tuple(known[i] if i < len(known) else f"obs[{i}]" for i in np.flatnonzero(held))
         groups.setdefault(features, []).append(name)
     if not any(groups):
         return "none"

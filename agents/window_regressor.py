@@ -23,10 +23,20 @@ Training episodes are played with a behaviour policy that, per window, takes a u
 probability ``explore`` and the window's best candidate (known from the labels) otherwise, so the observed
 "current action" and residual features cover both tuned and untuned filters. Windows whose scores are not all
 finite (no ground truth in the window) are left out.
+
+``window_anchored`` (:class:`AnchoredWindowPolicy`) starts from a one-shot tuner's action for the track (the
+anchor: a FilterTune-v0 model's, ``agents.retune_eval.OneShotLearned``) and leaves it in a window only where the
+regressor predicts a candidate's log RMSE below the anchor's by more than a margin. For it the anchor is one more
+candidate in every training window (its log RMSE a further output), and the margin is chosen on validation
+episodes (:func:`select_margin`, ties to the larger margin); an infinite margin is the one-shot tuner itself. An
+argmin over 121 noisy predictions is biased low (the winner's curse), so switching on any predicted gain loses where
+the anchor is already right (measured, prototype, ufir_cmn, W = 10, offline view, 200 train / 200 test stationary
+episodes: margin 0 −0.022 [−0.041, −0.008] against the one-shot tuner, 0.3 −0.011 [−0.027, +0.001]).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import product
 from typing import Any
@@ -35,9 +45,12 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-from agents.baselines import GridSearch, ObsPolicy, mlp_regressor
+from agents.baselines import GridSearch, ObsPolicy, Policy, mlp_regressor
+from agents.retune_eval import OneShot, Sequential
+from agents.splits import EpisodeSpec
+from envs.episodes.scoring import score_estimates
 
-WINDOW_AMORTISED = "window_amortised"
+WINDOW_AMORTISED, WINDOW_ANCHORED = "window_amortised", "window_anchored"
 
 
 @dataclass(frozen=True)
@@ -48,6 +61,8 @@ class WindowRegressorSettings:
     explore: float = 0.5  # probability of a random candidate in a training window (else the window's best)
     hidden: tuple[int, ...] = (64, 64)  # MLP hidden layers (as the RL policy)
     ensemble: int = 3  # MLPs fitted on the same data from different initialisations; their predictions are averaged
+    margins: tuple[float, ...] = (0.0, 0.05, 0.1, 0.2, 0.3, np.inf)  # window_anchored: the predicted log-RMSE gains a
+    # switch away from the anchor must exceed, one chosen on validation episodes (inf: never switch)
 
 
 def candidate_grid(d: int, n: int) -> np.ndarray:
@@ -67,28 +82,50 @@ def window_labels(env: gym.Env, candidates: np.ndarray) -> np.ndarray | None:
 
 
 def collect(env: gym.Env, noise_seeds: np.ndarray, candidates: np.ndarray, explore: float, rng: np.random.Generator,
-            progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
+            progress: bool = False, anchor: OneShot | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Observations (n, F) and centred log-RMSE labels (n, A) of every window of the episodes ``noise_seeds`` of
-    ``env`` (a FilterRetune-v0 env of the train split), played with the behaviour policy of the module docstring."""
+    ``env`` (a FilterRetune-v0 env of the train split), played with the behaviour policy of the module docstring.
+    With ``anchor`` (a one-shot tuner of the train split) its action for the episode is candidate A + 1 (labels
+    (n, A + 1))."""
     obs_rows, labels = [], []
     for s in tqdm(noise_seeds, desc=f"{WINDOW_AMORTISED} targets", disable=not progress, leave=False):
         obs, _ = env.reset(options={"noise_seed": int(s)})
+        actions = candidates if anchor is None else np.vstack([candidates, anchor.choose(obs, env)])
         done = False
         while not done:
-            y = window_labels(env, candidates)
+            y = window_labels(env, actions)
             if y is not None:
                 obs_rows.append(obs)
                 labels.append(y)
             explore_now = y is None or rng.random() < explore
-            action = candidates[rng.integers(len(candidates))] if explore_now else candidates[np.argmin(y)]
+            action = actions[rng.integers(len(actions))] if explore_now else actions[np.argmin(y)]
             obs, _, done, _, _ = env.step(action)
     if not labels:
         raise ValueError(f"{WINDOW_AMORTISED}: no window with finite scores in {len(noise_seeds)} training episodes")
     return np.asarray(obs_rows, dtype=np.float64), np.asarray(labels)
 
 
+def fit_regressor(env: gym.Env, noise_seeds: np.ndarray, *, settings: WindowRegressorSettings = WindowRegressorSettings(),
+                  seed: int = 0, anchor: OneShot | None = None, progress: bool = False) -> tuple[MeanRegressor, np.ndarray]:
+    """The per-window regressor fitted on the windows of the train-split episodes ``noise_seeds`` of the
+    FilterRetune-v0 env ``env`` (with ``anchor``: one more output, the anchor's), and its candidates (A, d)."""
+    if not 0.0 <= settings.explore <= 1.0:
+        raise ValueError(f"explore={settings.explore}; allowed: 0 <= explore <= 1")
+    if settings.ensemble < 1:
+        raise ValueError(f"ensemble={settings.ensemble}; allowed: >= 1")
+    if not settings.margins or any(np.isnan(m) or m < 0 for m in settings.margins):
+        raise ValueError(f"margins={settings.margins}; allowed: one or more numbers >= 0 (inf: never switch)")
+    candidates = candidate_grid(env.unwrapped.action_map.dim, settings.candidates)
+    obs, labels = collect(env, noise_seeds, candidates, settings.explore, np.random.default_rng((seed, 7)), progress,
+                          anchor)
+    members = [mlp_regressor(settings.hidden, seed * settings.ensemble + k).fit(obs, labels)
+               for k in range(settings.ensemble)]
+    return MeanRegressor(members), candidates
+
+
 class WindowRegressorPolicy(ObsPolicy):
-    """Plays the candidate whose predicted (centred) log RMSE on the coming window is lowest."""
+    """Plays the candidate whose predicted (centred) log RMSE on the coming window is lowest (of the regressor's
+    first A outputs: a regressor fitted with an anchor has one more)."""
 
     def __init__(self, regressor: Any, candidates: np.ndarray, name: str = WINDOW_AMORTISED) -> None:
         self.regressor = regressor
@@ -97,21 +134,70 @@ class WindowRegressorPolicy(ObsPolicy):
 
     def predict(self, obs: np.ndarray) -> np.ndarray:
         scores = self.regressor.predict(np.asarray(obs, dtype=np.float64)).reshape(len(obs), -1)
-        return self.candidates[np.argmin(scores, axis=1)]
+        return self.candidates[np.argmin(scores[:, :len(self.candidates)], axis=1)]
 
     @classmethod
     def fit(cls, env: gym.Env, noise_seeds: np.ndarray, *, settings: WindowRegressorSettings = WindowRegressorSettings(),
             seed: int = 0, name: str = WINDOW_AMORTISED, progress: bool = False) -> WindowRegressorPolicy:
         """Fit on the windows of the train-split episodes ``noise_seeds`` of the FilterRetune-v0 env ``env``."""
-        if not 0.0 <= settings.explore <= 1.0:
-            raise ValueError(f"explore={settings.explore}; allowed: 0 <= explore <= 1")
-        if settings.ensemble < 1:
-            raise ValueError(f"ensemble={settings.ensemble}; allowed: >= 1")
-        candidates = candidate_grid(env.unwrapped.action_map.dim, settings.candidates)
-        obs, labels = collect(env, noise_seeds, candidates, settings.explore, np.random.default_rng((seed, 7)), progress)
-        members = [mlp_regressor(settings.hidden, seed * settings.ensemble + k).fit(obs, labels)
-                   for k in range(settings.ensemble)]
-        return cls(MeanRegressor(members), candidates, name=name)
+        return cls(*fit_regressor(env, noise_seeds, settings=settings, seed=seed, progress=progress), name=name)
+
+
+class AnchoredWindowPolicy(Policy):
+    """Plays the anchor's action (a one-shot tuner's, asked once per episode) and, in a window, the candidate with
+    the lowest predicted log RMSE instead where that is below the anchor's prediction by more than ``margin``."""
+
+    def __init__(self, regressor: Any, candidates: np.ndarray, anchor: OneShot, margin: float,
+                 name: str = WINDOW_ANCHORED) -> None:
+        self.regressor = regressor
+        self.candidates = candidates
+        self.anchor = anchor
+        self.margin = margin
+        self.name = name
+        self._anchor_action: np.ndarray | None = None
+
+    def begin_episode(self) -> None:
+        self._anchor_action = None
+
+    def act(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
+        if self._anchor_action is None:
+            self._anchor_action = np.asarray(self.anchor.choose(obs, env), dtype=np.float64)
+        scores = self.regressor.predict(np.asarray(obs, dtype=np.float64)[None]).reshape(-1)
+        if len(scores) != len(self.candidates) + 1:
+            raise ValueError(f"{self.name}: the regressor has {len(scores)} outputs; an anchored one has "
+                             f"{len(self.candidates) + 1} (the candidates' and the anchor's)")
+        gain = scores[-1] - scores[:-1]  # predicted log RMSE of the anchor minus each candidate's
+        best = int(np.argmax(gain))
+        return self.candidates[best] if gain[best] > self.margin else self._anchor_action
+
+    def with_anchor(self, anchor: OneShot, margin: float | None = None) -> AnchoredWindowPolicy:
+        """The same regressor with another anchor (e.g. the same model on another split's env) and margin."""
+        return AnchoredWindowPolicy(self.regressor, self.candidates, anchor, self.margin if margin is None else margin,
+                                    name=self.name)
+
+
+def log_ratio_vs_rule(env: gym.Env, policy: Policy, episodes: Sequence[EpisodeSpec]) -> np.ndarray:
+    """log(RMSE_rule / RMSE) (n,) of ``policy`` asked every window of ``episodes`` of the FilterRetune-v0 env ``env``,
+    on the frames after the warm-up window (as agents.retune_eval scores them)."""
+    base, out = env.unwrapped, []
+    for spec in episodes:
+        obs, _ = env.reset(options=spec.options())
+        Sequential(policy).play(env, obs)
+        warm = min(base.config.window, len(base.episode.y))
+        est = np.stack([base.estimates, base.rule_estimates])[:, warm:]
+        rmse = score_estimates(est, base.episode.truth[warm:])["rmse"]
+        out.append(np.log(rmse[1] / rmse[0]))
+    return np.asarray(out)
+
+
+def select_margin(policy: AnchoredWindowPolicy, env: gym.Env, episodes: Sequence[EpisodeSpec],
+                  margins: Sequence[float]) -> tuple[float, dict[float, float]]:
+    """The margin of ``margins`` with the highest mean log-ratio against the rule of ``policy`` (its anchor of
+    ``env``'s split) on the validation ``episodes`` of ``env`` (ties: the larger margin), and every margin's mean."""
+    means = {float(m): float(np.mean(log_ratio_vs_rule(env, policy.with_anchor(policy.anchor, m), episodes)))
+             for m in margins}
+    best = max(means, key=lambda m: (means[m] if np.isfinite(means[m]) else -np.inf, m))
+    return best, means
 
 
 class MeanRegressor:

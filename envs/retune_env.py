@@ -63,6 +63,9 @@ class FilterRetuneEnv(TrackEnv):
     | 45 + d … 64 + d | ``"offline"`` only: ``FEATURE_NAMES`` on the **whole** track (exactly FilterTune-v0's   | see there |
     |              | observation of the episode: what a one-shot tuner sees)                               |      |
 
+    ``env.unwrapped.observation_names`` names every entry (:func:`retune_observation_names`: the feature names,
+    ``action_<parameter>``, ``progress``, ``coming_<feature>``, ``track_<feature>``).
+
     ``"causal"`` is what a filter behind a live tracker can know when it re-tunes: the frames already filtered.
     ``"offline"`` is for smoothing a recorded track (a tracker's saved results), where every measurement exists
     before the filter runs: the filter itself stays causal, but the tuner may look ahead at the measurements (a
@@ -252,6 +255,11 @@ class FilterRetuneEnv(TrackEnv):
         return self._features(0, self._start)
 
     @property
+    def observation_names(self) -> tuple[str, ...]:
+        """A name for every observation entry, in the Observation Space table's order."""
+        return retune_observation_names(self.config)
+
+    @property
     def window_start(self) -> int:
         """The first frame of the next window (the frames before it are filtered and observed)."""
         return self._start
@@ -322,3 +330,13 @@ class FilterRetuneEnv(TrackEnv):
 
     def render(self) -> np.ndarray | None:
         return self._render(self._estimate, frame=max(self._start - 1, 0)) if self.episode is not None else None
+
+
+def retune_observation_names(config: EnvConfig) -> tuple[str, ...]:
+    """The FilterRetune-v0 observation's entries (Observation Space) for ``config``: ``FEATURE_NAMES`` (the recent
+    frames), ``WINDOW_FEATURE_NAMES``, ``action_<parameter>`` per tuned parameter, ``progress`` and, with the offline
+    view, ``coming_<feature>`` and ``track_<feature>``."""
+    names = [*FEATURE_NAMES, *WINDOW_FEATURE_NAMES, *(f"action_{p}" for p in config.tune), "progress"]
+    if config.retune_view == "offline":
+        names += [*(f"coming_{n}" for n in FEATURE_NAMES), *(f"track_{n}" for n in FEATURE_NAMES)]
+    return tuple(names)

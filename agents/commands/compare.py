@@ -31,7 +31,9 @@ RUN_DIR: a FilterTune-v0 run's action for the whole track, chosen seeing the who
 oneshot_learned_online (the same model choosing from the warm-up window only), window_oracle (greedy per-window
 search with the truth, carrying the filter state), window_amortised (a learned sequential tuner without RL: a
 regressor from the window's observation to every candidate action's log RMSE on the coming window, fitted on
---train-episodes train episodes, agents.window_regressor; --fit-seeds K fits K of them), adaptive (Sage–Husa), imm
+--train-episodes train episodes, agents.window_regressor; --fit-seeds K fits K of them), window_anchored (with
+--oneshot-model: the same regressor anchored at oneshot_learned's action, leaving it in a window only for a
+predicted gain above a margin chosen on --val-episodes val episodes or set with --anchor-margin), adaptive (Sage–Husa), imm
 (IMM over two KF tunings) and the trained model(s), all on the frames after the warm-up window; summary.md adds
 the share of the one-shot → per-window gap each method closes, the paired log-ratio of every sequential tuner
 against oneshot_learned and, with several --model or --fit-seeds K > 1, their IQM and mean across seeds;
@@ -70,8 +72,8 @@ import gymnasium as gym
 import torch
 
 from agents.baselines import GridSearch, OraclePolicy
-from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, key_values, nonnegative_int,
-                        out_dir, positive_int, tracker_set)
+from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, float_range, int_range, key_values,
+                        nonnegative_int, out_dir, positive_int, tracker_set)
 from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,
                              standard_policies)
 from agents.plots import gain_boxplot, otb_curves, performance_profile, trajectories
@@ -82,7 +84,7 @@ from agents.runs import ENV_ERRORS, SB3Policy, check_free, describe_held_feature
 from agents.safe_load import check_env_match
 from agents.seeds_report import profile_curves, seeds_section
 from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
-from agents.window_regressor import WINDOW_AMORTISED
+from agents.window_regressor import WINDOW_AMORTISED, WINDOW_ANCHORED
 from envs.data.atomic_files import write_text_atomic
 from envs.episodes.config import EnvConfig
 
@@ -90,6 +92,7 @@ ENVS = (ONE_STEP_ENV, RETUNE_ENV)
 MIN_TRAIN_EPISODES = 11  # AmortisedPolicy's MLP holds out ceil(10 %) for early stopping and needs >= 2 of them
 DEFAULT_EPISODES = 500  # sim / video
 DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episodes
+DEFAULT_VAL_EPISODES = 100  # FilterRetune-v0 with --oneshot-model: the episodes window_anchored's margin is chosen on
 
 
 def build_parser() -> ArgumentParser:
@@ -128,6 +131,12 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--oneshot-model", type=existing_dir, default=None, metavar="RUN_DIR",
                    help=f"{RETUNE_ENV} runs: a {ONE_STEP_ENV} run scored as oneshot_learned (its action for the whole "
                         "track); without it that row is left out")
+    p.add_argument("--val-episodes", type=int_range(1, SPLIT_SIZE), default=None,
+                   help=f"{RETUNE_ENV} runs with --oneshot-model: val-split episodes the margin of {WINDOW_ANCHORED} is "
+                        f"chosen on (default {DEFAULT_VAL_EPISODES}; sim sources: OTB sources take every val sequence once)")
+    p.add_argument("--anchor-margin", type=float_range(0.0), default=None, metavar="M",
+                   help=f"{RETUNE_ENV} runs with --oneshot-model: the margin of {WINDOW_ANCHORED} (predicted log-RMSE "
+                        "gain a switch away from the one-shot action must exceed), instead of choosing it on val episodes")
     p.add_argument("--trust-pickle", action="store_true",
                    help="accept an old run's pickled vecnormalize.pkl (pickles can run code: only for runs you trust)")
     return p
@@ -142,6 +151,12 @@ def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[s
         parser.error(f"--oneshot-model: only for runs of {RETUNE_ENV} (this one is of {env_id})")
     if args.fit_seeds != 1 and env_id != RETUNE_ENV:
         parser.error(f"--fit-seeds: only for runs of {RETUNE_ENV} (this one is of {env_id})")
+    for flag, value in (("--val-episodes", args.val_episodes), ("--anchor-margin", args.anchor_margin)):
+        if value is not None and args.oneshot_model is None:
+            parser.error(f"{flag}: only with --oneshot-model (it sets {WINDOW_ANCHORED}, which is anchored there)")
+    if args.val_episodes is not None and args.anchor_margin is not None:
+        parser.error("--val-episodes: not used with --anchor-margin (no margin is chosen)")
+    args.val_episodes = args.val_episodes or DEFAULT_VAL_EPISODES
     try:
         overrides = key_values("--env-kwargs", args.env_kwargs)
     except ValueError as err:

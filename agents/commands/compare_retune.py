@@ -1,11 +1,13 @@
 """The FilterRetune-v0 part of ``scripts/compare.py``: the re-tuning methods (agents.retune_eval), the per-window
-regressors it fits (agents.window_regressor, ``--fit-seeds``), the one-shot model it loads (``--oneshot-model``), and
+regressors it fits (agents.window_regressor, ``--fit-seeds``; anchored at the one-shot model with its margin chosen on
+val episodes, ``--val-episodes`` / ``--anchor-margin``), the one-shot model it loads (``--oneshot-model``), and
 the summary with the one-shot → per-window gap (agents.report_retune). compare.py parses and checks the arguments."""
 
 from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.baselines import GridSearch, RulePolicy
+from agents.evaluate import OTB_SOURCES, evaluation_episodes
 from agents.plots import gain_boxplot, parameter_schedule
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.report_retune import retune_tables
@@ -23,7 +26,8 @@ from agents.runs import ENV_ERRORS, SB3Policy, describe_held_features, load_conf
 from agents.safe_load import check_env_match
 from agents.seeds_report import seeds_section
 from agents.splits import EpisodeSpec, train_seeds
-from agents.window_regressor import WINDOW_AMORTISED, WindowRegressorPolicy
+from agents.window_regressor import (WINDOW_AMORTISED, WINDOW_ANCHORED, AnchoredWindowPolicy, WindowRegressorPolicy,
+                                     WindowRegressorSettings, fit_regressor, select_margin)
 from envs.data.atomic_files import write_text_atomic
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"
@@ -45,17 +49,66 @@ def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneSho
     return OneShotLearned(policy, tune_env)
 
 
-def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace) -> list[WindowRegressorPolicy]:
-    """``--fit-seeds`` window regressors (agents.window_regressor), each on its own ``--train-episodes`` train episodes."""
-    fitted = []
+@dataclass
+class Anchors:
+    """``--oneshot-model`` on each split's FilterTune-v0 env (the anchors of ``window_anchored``), and the val
+    split's FilterRetune-v0 env and episodes its margin is chosen on."""
+
+    by_split: dict[str, OneShotLearned]
+    val_env: gym.Env
+    val_episodes: list[EpisodeSpec]
+
+    @classmethod
+    def build(cls, oneshot: OneShotLearned, env_kwargs: dict[str, Any], n_val: int) -> Anchors:
+        by_split = {split: OneShotLearned(oneshot.policy, make_env(ONE_STEP_ENV, env_kwargs, split=split))
+                    for split in ("train", "val")}
+        val_env = make_env(RETUNE_ENV, env_kwargs, split="val")
+        source = val_env.unwrapped.config.source
+        counted = source not in OTB_SOURCES
+        episodes = evaluation_episodes(val_env, "val", episodes=n_val if counted else None,
+                                       seeds_per_sequence=1 if source == "otb" else None)
+        return cls({**by_split, "test": oneshot}, val_env, episodes)
+
+
+def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace, anchors: Anchors | None
+                          ) -> tuple[list[WindowRegressorPolicy], list[AnchoredWindowPolicy], dict[str, dict[float, float]]]:
+    """``--fit-seeds`` window regressors (agents.window_regressor), each on its own ``--train-episodes`` train
+    episodes, as ``window_amortised`` policies; with ``anchors`` also as ``window_anchored`` policies (anchored on
+    the test split), with the margin ``--anchor-margin`` or the one chosen on the val episodes (each margin's mean
+    log-ratio on them: the third item)."""
+    amortised, anchored, val_means = [], [], {}
     for k in range(args.fit_seeds):
         seed = args.seed + k
-        name = WINDOW_AMORTISED if args.fit_seeds == 1 else f"{WINDOW_AMORTISED}_s{seed}"
+        suffix = "" if args.fit_seeds == 1 else f"_s{seed}"
         start = time.perf_counter()
-        fitted.append(WindowRegressorPolicy.fit(train_env, train_seeds(np.random.default_rng(seed), args.train_episodes),
-                                                seed=seed, name=name, progress=True))
-        print(f"fitted {name} on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
-    return fitted
+        regressor, candidates = fit_regressor(train_env, train_seeds(np.random.default_rng(seed), args.train_episodes),
+                                              seed=seed, anchor=anchors and anchors.by_split["train"], progress=True)
+        amortised.append(WindowRegressorPolicy(regressor, candidates, name=WINDOW_AMORTISED + suffix))
+        print(f"fitted {amortised[-1].name} on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
+        if anchors is None:
+            continue
+        policy = AnchoredWindowPolicy(regressor, candidates, anchors.by_split["val"], margin=0.0,
+                                      name=WINDOW_ANCHORED + suffix)
+        margin = args.anchor_margin
+        if margin is None:
+            start = time.perf_counter()
+            margin, val_means[policy.name] = select_margin(policy, anchors.val_env, anchors.val_episodes,
+                                                           WindowRegressorSettings().margins)
+            print(f"{policy.name}: margin {margin} chosen on {len(anchors.val_episodes)} val episodes "
+                  f"({time.perf_counter() - start:.0f} s): {val_means[policy.name]}")
+        anchored.append(policy.with_anchor(anchors.by_split["test"], margin))
+    return amortised, anchored, val_means
+
+
+def anchored_settings(anchored: list[AnchoredWindowPolicy], val_means: dict[str, dict[float, float]],
+                      anchors: Anchors) -> str:
+    """summary.md's line on the ``window_anchored`` policies: their margins and how they were chosen."""
+    chosen = ", ".join(f"{p.name} {p.margin:g}" for p in anchored)
+    if not val_means:
+        return f"the same regressor(s), anchored at `oneshot_learned`'s action; margin (--anchor-margin): {chosen}"
+    tried = "; ".join(f"{name}: " + ", ".join(f"{m:g} {v:+.3f}" for m, v in means.items()) for name, means in val_means.items())
+    return (f"the same regressor(s), anchored at `oneshot_learned`'s action; margin chosen on {len(anchors.val_episodes)} "
+            f"val-split episodes: {chosen} (mean log-ratio vs rule there per margin — {tried})")
 
 
 def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwargs: tuple[gym.Env, gym.Env, dict[str, Any]],
@@ -73,11 +126,12 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     search = GridSearch(budget=args.oracle_budget)
     print(f"seed: {args.seed}\n{cfg['algo']} from {args.model}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} "
           f"episodes, window {config.window}")
-    regressors = fit_window_regressors(train_env, args)
+    anchors = Anchors.build(oneshot, env_kwargs, args.val_episodes) if oneshot else None
+    regressors, anchored, val_means = fit_window_regressors(train_env, args, anchors)
     online = [OneShotLearned(oneshot.policy, oneshot.tune_env, online=True)] if oneshot else []
     methods = [Sequential(RulePolicy()), OneShotOracle(search), *([oneshot] if oneshot else []), *online,
-               window_oracle(search), *(Sequential(p) for p in [*regressors, *learned])]
-    sequential = [p.name for p in [*regressors, *learned]]
+               window_oracle(search), *(Sequential(p) for p in [*regressors, *anchored, *learned])]
+    sequential = [p.name for p in [*regressors, *anchored, *learned]]
     start = time.perf_counter()
     result = evaluate_retune(env, methods, episodes, progress=True)
     print(f"scored {len(result.truth_at_test)} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
@@ -85,7 +139,7 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     title = f"{cfg['algo']} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
     gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
     ex = result.example
-    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, learned[0].name)
+    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, *(p.name for p in anchored[:1]), learned[0].name)
     shown = {k: v for k, v in ex["schedules"].items() if k in plotted}
     parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
     settings_md = {"command": f"`{command}`", "model": models_described,
@@ -93,11 +147,15 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                    "inputs held at their training value": describe_held_features(
                        {**{p.name: p.normalizer for p in learned},
                         **({ONESHOT_LEARNED: oneshot.policy.normalizer} if oneshot and isinstance(oneshot.policy, SB3Policy)
-                           else {})}),
+                           else {})},
+                       {p.name: env.unwrapped.observation_names for p in learned}),
                    WINDOW_AMORTISED: f"{', '.join(p.name for p in regressors)}: per-window regressor(s) "
                                      f"(agents.window_regressor, {len(regressors[0].candidates)} candidate actions) fitted "
                                      f"on {args.train_episodes} train-split episodes each (seeds {args.seed} … "
-                                     f"{args.seed + args.fit_seeds - 1})",
+                                     f"{args.seed + args.fit_seeds - 1})"
+                                     + (f"; its candidates include the `oneshot_learned` action (the anchor of "
+                                        f"{WINDOW_ANCHORED})" if anchors else ""),
+                   **({WINDOW_ANCHORED: anchored_settings(anchored, val_means, anchors)} if anchors else {}),
                    "env": f"`{env_kwargs}`",
                    "test episodes": described,
                    "scored frames": f"every frame after the warm-up window (the first {config.window}, filtered by the rule "
@@ -109,6 +167,7 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                                n_boot=args.bootstrap, seed=args.seed, rmse_oracle=WINDOW_ORACLE)
     if len(regressors) > 1:
         groups = {**groups, WINDOW_AMORTISED: [p.name for p in regressors]}
+        groups.update({WINDOW_ANCHORED: [p.name for p in anchored]} if anchored else {})
     head, figures = summary.split("## Figures")
     seeds = seeds_section(result.rows, groups, n_boot=args.bootstrap, seed=args.seed,
                           reference=[m for m in ("raw", "rule", ONESHOT_LEARNED, ONESHOT_ORACLE, WINDOW_ORACLE)

@@ -56,7 +56,7 @@ from agents.hyperparams import VEC_ENVS, Hyperparams, constructor_kwargs, load_h
 from agents.plots import learning_curve
 from agents.run_files import PICKLED_REPLAY, REPLAY, STATS, RunError, load_normalizer, load_replay_buffer, save_stats
 from agents.runs import (CONFIG, ENV_ERRORS, RESUME_KEYS, RunLock, check_free, claim_run_dir, describe_held_features,
-                         load_config, make_env, make_vec)
+                         load_config, make_env, make_vec, observation_names)
 from agents.safe_load import load_model, stamp
 from envs.data.atomic_files import atomic_write, write_text_atomic
 from envs.data.otb import TRACKER_SPLIT
@@ -356,7 +356,8 @@ def train(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Check
     if venv is not None:
         save_stats(venv, run_dir / STATS)
         print("inputs that never varied in training (held at their training value wherever the tuner is applied): "
-              + describe_held_features({cfg["algo"]: venv}))
+              + describe_held_features({cfg["algo"]: venv},
+                                       {cfg["algo"]: observation_names(cfg["env_id"], cfg["env_kwargs"])}))
     episode_log.write_csv(run_dir / "train_log.csv")
     evals = np.array([np.mean(r) for r in evaluation.evaluations_results])
     write_text_atomic(run_dir / "eval_curve.csv", "timestep,mean_reward,std_reward\n" + "".join(

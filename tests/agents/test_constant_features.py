@@ -89,3 +89,20 @@ def test_summaries_name_the_held_inputs_per_tuner() -> None:
     norm = _normalizer()
     assert describe_held_features({"ppo": norm, "ppo_best": norm, "sac": None}) == "ppo, ppo_best: log_tau; sac: none"
     assert describe_held_features({"ppo": _normalizer(np.ones(3)), "sac": None}) == "none"
+
+
+def test_held_inputs_of_a_re_tuning_observation_are_named_by_its_env() -> None:
+    """Entries past FEATURE_NAMES get the FilterRetune-v0 observation's names (obs[i] only past any name given)."""
+    from agents.runs import observation_names
+    from envs.episodes.features import FEATURE_NAMES
+
+    kwargs = {"window": 10, "retune_view": "offline"}
+    names = observation_names("bboxtune/FilterRetune-v0", kwargs)
+    assert names == gym.make("bboxtune/FilterRetune-v0", **kwargs).unwrapped.observation_names
+    assert observation_names("bboxtune/FilterTune-v0", {}) == FEATURE_NAMES
+    var = np.ones(len(names))
+    var[[names.index("progress"), names.index("track_log_tau")]] = 0.0
+    norm = _normalizer(var)
+    norm.obs_rms.mean = np.zeros(len(names))
+    assert describe_held_features({"ppo": norm}, {"ppo": names}) == "ppo: progress, track_log_tau"
+    assert describe_held_features({"ppo": norm}) == f"ppo: obs[{names.index('progress')}], obs[{names.index('track_log_tau')}]"

@@ -132,6 +132,28 @@ def test_offline_view_adds_the_coming_window_and_the_whole_track(backend: str) -
         base = causal.step(action)[0]
 
 
+@pytest.mark.parametrize(("backend", "view"), [("ufir_cmn", "causal"), ("kf_cmn", "offline")])
+def test_observation_names_match_the_observation(backend: str, view: str) -> None:
+    """One distinct name per entry, in the Observation Space table's order: the current action's entries are the
+    action itself (the rule's after the warm-up), the progress the share filtered, the whole track's part
+    FilterTune-v0's observation."""
+    from envs.episodes.features import FEATURE_NAMES
+
+    env = gym.make(RETUNE, backend=backend, scenario="nonstationary", track_length=100, window=20, retune_view=view)
+    names = env.unwrapped.observation_names
+    assert len(names) == env.observation_space.shape[0] == len(set(names))
+    obs, _ = env.reset(options={"noise_seed": 3})
+    action = env.action_space.sample()
+    obs, _, _, _, _ = env.step(action)
+    at = {n: obs[i] for i, n in enumerate(names)}
+    tuned = [n for n in names if n.startswith("action_")]
+    assert len(tuned) == len(action) and [at[n] for n in tuned] == pytest.approx(action)
+    assert at["progress"] == pytest.approx(40 / 100) and names[: len(FEATURE_NAMES)] == FEATURE_NAMES
+    if view == "offline":
+        whole, _ = gym.make(TUNE, backend=backend, scenario="nonstationary", track_length=100).reset(options={"noise_seed": 3})
+        np.testing.assert_array_equal([at[f"track_{n}"] for n in FEATURE_NAMES], whole)
+
+
 def test_offline_view_is_measurement_only() -> None:
     """The offline observations of an episode do not change when its ground truth (and true scenario) do."""
     from dataclasses import replace

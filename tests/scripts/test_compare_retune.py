@@ -14,7 +14,8 @@ from agents.commands import compare
 from .tiny_run import TINY, tiny_run, train  # noqa: F401  (fixtures)
 
 METHODS = {"raw", "rule", "oneshot_oracle", "oneshot_learned", "oneshot_learned_online", "window_oracle", "adaptive", "imm",
-           "ppo_s0", "ppo_s1", "ppo_best_s0", "ppo_best_s1", "window_amortised_s0", "window_amortised_s1"}
+           "ppo_s0", "ppo_s1", "ppo_best_s0", "ppo_best_s1", "window_amortised_s0", "window_amortised_s1",
+           "window_anchored_s0", "window_anchored_s1"}
 EPISODES = 4
 NONSTATIONARY = ["--env-kwargs", "track_length:100", "scenario:nonstationary"]
 
@@ -37,7 +38,7 @@ def test_compare_scores_retune_runs_against_every_baseline(runs: tuple[Path, Pat
     retune, oneshot, second = runs
     out = compare.run(["--model", str(retune), str(second), "--oneshot-model", str(oneshot), "--episodes",
                        str(EPISODES), "--oracle-budget", "16", "--bootstrap", "50", "--train-episodes", "12", "--fit-seeds", "2",
-                       "--out", str(tmp_path / "c")])
+                       "--val-episodes", "2", "--out", str(tmp_path / "c")])
     with open(out / "results.csv") as fh:
         table = list(csv.DictReader(fh))
     assert {r["method"] for r in table} == METHODS and len(table) == len(METHODS) * EPISODES
@@ -49,9 +50,11 @@ def test_compare_scores_retune_runs_against_every_baseline(runs: tuple[Path, Pat
     summary = (out / "summary.md").read_text()
     assert "## Re-tuning: the one-shot → per-window gap" in summary and "Paired: sequential against oneshot_learned" in summary
     assert "| window_amortised_s1 |" in summary.split("Paired: sequential against oneshot_learned")[1]
+    assert "| window_anchored_s1 |" in summary.split("Paired: sequential against oneshot_learned")[1]
+    assert "margin chosen on 2 val-split episodes: window_anchored_s0 " in summary
     assert "oneshot_learned: `" in summary and (out / "parameter_schedule.png").stat().st_size > 0
     seeds = summary.split("## Across training seeds")[1].split("## Figures")[0]
-    for row in ("| ppo | 2 |", "| ppo_best | 2 |", "| window_amortised | 2 |", "| rule | 1 | +0.000 [+0.000, +0.000]",
+    for row in ("| ppo | 2 |", "| ppo_best | 2 |", "| window_amortised | 2 |", "| window_anchored | 2 |", "| rule | 1 | +0.000 [+0.000, +0.000]",
                 "| oneshot_learned | 1 |", "| window_oracle | 1 |"):
         assert row in seeds
 
@@ -65,6 +68,24 @@ def test_oneshot_model_must_be_a_one_step_run(runs: tuple[Path, Path, Path], tmp
     assert "--oneshot-model" in capsys.readouterr().err and not (tmp_path / "c").exists()
 
 
+@pytest.mark.parametrize(("flags", "with_oneshot", "message"), [
+    (["--anchor-margin", "0.1"], False, "--anchor-margin: only with --oneshot-model"),
+    (["--val-episodes", "5"], False, "--val-episodes: only with --oneshot-model"),
+    (["--val-episodes", "5", "--anchor-margin", "0.1"], True, "--val-episodes: not used with --anchor-margin"),
+    (["--anchor-margin", "-0.1"], True, "invalid value '-0.1'; allowed: finite numbers >= 0"),
+    (["--anchor-margin", "nan"], True, "invalid value 'nan'"),
+    (["--val-episodes", "0"], True, "--val-episodes"),
+])
+def test_anchor_flags_are_checked_before_any_work(runs: tuple[Path, Path, Path], tmp_path: Path, flags: list[str],
+                                                  with_oneshot: bool, message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    retune, oneshot, _ = runs
+    extra = ["--oneshot-model", str(oneshot)] if with_oneshot else []
+    with pytest.raises(SystemExit) as exc:
+        compare.run(["--model", str(retune), *extra, *flags, "--out", str(tmp_path / "c")])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err and not (tmp_path / "c").exists()
+
+
 def test_an_offline_view_run_is_scored_and_a_causal_model_is_refused_there(train, runs: tuple[Path, Path, Path],  # noqa: F811
                                                                            tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """retune_view=offline travels with the run (config.yml): the sequential model and the window regressor it fits
@@ -73,11 +94,15 @@ def test_an_offline_view_run_is_scored_and_a_causal_model_is_refused_there(train
     offline = train.run([*_tiny("--env", "bboxtune/FilterRetune-v0", "--env-kwargs", "window:40", "retune_view:offline"),
                          "--out", str(tmp_path / "off")])
     out = compare.run(["--model", str(offline), "--oneshot-model", str(oneshot), "--episodes", "2", "--oracle-budget", "16",
-                       "--bootstrap", "50", "--train-episodes", "11", "--out", str(tmp_path / "c")])
+                       "--bootstrap", "50", "--train-episodes", "11", "--anchor-margin", "1e9", "--out", str(tmp_path / "c")])
     with open(out / "results.csv") as fh:
-        methods = {r["method"] for r in csv.DictReader(fh)}
-    assert {"ppo", "window_amortised", "oneshot_learned"} <= methods
-    assert "'retune_view': 'offline'" in (out / "summary.md").read_text()
+        rows = list(csv.DictReader(fh))
+    assert {"ppo", "window_amortised", "window_anchored", "oneshot_learned"} <= {r["method"] for r in rows}
+    rmse = {(r["method"], r["episode"]): r["rmse"] for r in rows}
+    for e in ("0", "1"):  # a margin no prediction exceeds: the one-shot tuner's action in every window
+        assert rmse["window_anchored", e] == rmse["oneshot_learned", e]
+    summary = (out / "summary.md").read_text()
+    assert "'retune_view': 'offline'" in summary and "margin (--anchor-margin): window_anchored 1e+09" in summary
     with pytest.raises(SystemExit) as exc:
         compare.run(["--model", str(causal), "--env-kwargs", "retune_view:offline", "--episodes", "2",
                      "--out", str(tmp_path / "refused")])
