@@ -34,7 +34,6 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
 import envs  # noqa: F401  (registers the env ids)
-from envs import ENV_IDS
 from agents.algos import ALGOS, RECURRENT
 from agents.baselines import ObsPolicy
 from agents.batched import TuneVecEnv
@@ -43,6 +42,7 @@ from agents.hyperparams import load_hyperparams
 from agents.run_files import RunError, load_normalizer
 from agents.safe_load import load_model
 from agents.splits import SplitSeeds, train_seeds
+from envs import ENV_IDS
 from envs.episodes.config import EnvConfig
 from envs.episodes.features import FEATURE_NAMES
 from envs.retune_env import retune_observation_names
