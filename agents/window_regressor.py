@@ -45,10 +45,9 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-from agents.baselines import GridSearch, ObsPolicy, Policy, mlp_regressor
-from agents.retune_eval import OneShot, Sequential
+from agents.baselines import GridSearch, ObsPolicy, Policy, RulePolicy, mlp_regressor
+from agents.retune_eval import OneShot, Sequential, evaluate_retune
 from agents.splits import EpisodeSpec
-from envs.episodes.scoring import score_estimates
 
 WINDOW_AMORTISED, WINDOW_ANCHORED = "window_amortised", "window_anchored"
 
@@ -176,26 +175,15 @@ class AnchoredWindowPolicy(Policy):
                                     name=self.name)
 
 
-def log_ratio_vs_rule(env: gym.Env, policy: Policy, episodes: Sequence[EpisodeSpec]) -> np.ndarray:
-    """log(RMSE_rule / RMSE) (n,) of ``policy`` asked every window of ``episodes`` of the FilterRetune-v0 env ``env``,
-    on the frames after the warm-up window (as agents.retune_eval scores them)."""
-    base, out = env.unwrapped, []
-    for spec in episodes:
-        obs, _ = env.reset(options=spec.options())
-        Sequential(policy).play(env, obs)
-        warm = min(base.config.window, len(base.episode.y))
-        est = np.stack([base.estimates, base.rule_estimates])[:, warm:]
-        rmse = score_estimates(est, base.episode.truth[warm:])["rmse"]
-        out.append(np.log(rmse[1] / rmse[0]))
-    return np.asarray(out)
-
-
 def select_margin(policy: AnchoredWindowPolicy, env: gym.Env, episodes: Sequence[EpisodeSpec],
                   margins: Sequence[float]) -> tuple[float, dict[float, float]]:
     """The margin of ``margins`` with the highest mean log-ratio against the rule of ``policy`` (its anchor of
-    ``env``'s split) on the validation ``episodes`` of ``env`` (ties: the larger margin), and every margin's mean."""
-    means = {float(m): float(np.mean(log_ratio_vs_rule(env, policy.with_anchor(policy.anchor, m), episodes)))
-             for m in margins}
+    ``env``'s split) on the validation ``episodes`` of ``env``, scored as ``agents.retune_eval.evaluate_retune`` scores
+    a test (ties: the larger margin), and every margin's mean."""
+    methods = [Sequential(RulePolicy()), *(Sequential(policy.with_anchor(policy.anchor, m), name=f"margin {m:g}")
+                                           for m in margins)]
+    rows = evaluate_retune(env, methods, episodes, adaptive=None, imm=None).rows
+    means = {float(m): float(np.mean([r["log_ratio"] for r in rows if r["method"] == f"margin {m:g}"])) for m in margins}
     best = max(means, key=lambda m: (means[m] if np.isfinite(means[m]) else -np.inf, m))
     return best, means
 

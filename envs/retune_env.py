@@ -158,9 +158,8 @@ class FilterRetuneEnv(TrackEnv):
         if config.reward_baseline != "rule":
             raise ValueError(f"reward_baseline={config.reward_baseline!r} with FilterRetune-v0; allowed: 'rule' "
                              "(a window's reward is measured against the rule; 'raw' is a FilterTune-v0 option)")
-        tune = config.tune
-        offline = 2 * len(FEATURE_NAMES) if config.retune_view == "offline" else 0
-        super().__init__(len(WINDOW_FEATURE_NAMES) + len(tune) + 1 + offline, render_mode=render_mode, **kwargs)
+        n_obs = len(retune_observation_names(config))  # the Observation Space table's entries
+        super().__init__(n_obs - len(FEATURE_NAMES), render_mode=render_mode, **kwargs)
         W = self.config.window
         self.source.require_frames(2 * W, f"FilterRetune-v0 with window={W} (a warm-up window and one step)")
 

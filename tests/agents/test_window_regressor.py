@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the ids)
-from agents.retune_eval import OneShot
+from agents.baselines import RulePolicy
+from agents.retune_eval import OneShot, Sequential, evaluate_retune
 from agents.splits import EpisodeSpec, eval_seeds, train_seeds
 from agents.window_regressor import (AnchoredWindowPolicy, WindowRegressorPolicy, WindowRegressorSettings, candidate_grid,
-                                     collect, fit_regressor, log_ratio_vs_rule, select_margin, window_labels)
+                                     collect, fit_regressor, select_margin, window_labels)
 
 RETUNE = "bboxtune/FilterRetune-v0"
 
@@ -134,8 +135,9 @@ def test_select_margin_scores_every_margin_and_breaks_ties_towards_the_anchor() 
     episodes = [EpisodeSpec(int(s)) for s in eval_seeds("val", 2)]
     margin, means = select_margin(policy, env, episodes, (0.0, 0.1, np.inf))
     assert margin == np.inf and list(means) == [0.0, 0.1, np.inf] and len(set(means.values())) == 1
-    held = log_ratio_vs_rule(env, AnchoredWindowPolicy(ConstantScores(scores), cands, FixedOneShot(anchor), np.inf), episodes)
-    assert means[0.0] == pytest.approx(float(held.mean())) and np.isfinite(held).all()
+    held = [r["log_ratio"] for r in evaluate_retune(env, [Sequential(RulePolicy()), FixedOneShot(anchor)], episodes,
+                                                    adaptive=None, imm=None).rows if r["method"] == "fixed"]
+    assert means[0.0] == pytest.approx(float(np.mean(held))) and np.isfinite(held).all() and len(held) == 2
 
 
 def test_anchored_fit_beats_its_anchor_on_held_out_windows() -> None:
