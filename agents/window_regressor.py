@@ -32,6 +32,15 @@ episodes (:func:`select_margin`, ties to the larger margin); an infinite margin 
 argmin over 121 noisy predictions is biased low (the winner's curse), so switching on any predicted gain loses where
 the anchor is already right (measured, prototype, ufir_cmn, W = 10, offline view, 200 train / 200 test stationary
 episodes: margin 0 −0.022 [−0.041, −0.008] against the one-shot tuner, 0.3 −0.011 [−0.027, +0.001]).
+
+``window_residual`` (the same class with ``around_anchor``) re-tunes *around* the anchor: its candidates in an episode are
+the anchor plus a small grid of offsets (``residual_step``, ``residual_points`` per dimension, clipped to the action
+box), its regressor sees the anchor beside the observation, and it leaves the anchor for the offset with the largest
+predicted gain above a margin chosen the same way. A fixed grid is coarse where the action has three dimensions (kf_cmn:
+4³ points), so every grid candidate can be far from a good action for the track; offsets keep the one-shot tuner's
+choice and adjust it per window (measured, prototype, kf_cmn, W = 10, offline view, 200 train / 100 val / 200 test
+non-stationary episodes: the fixed grid anchored, margin chosen on val: ∞, i.e. no switch; offsets of ±0.25, margin
+0.2 chosen on val: +0.025 [+0.014, +0.038] against the one-shot tuner; offsets of ±0.5: +0.010 [−0.008, +0.031]).
 """
 
 from __future__ import annotations
@@ -49,7 +58,7 @@ from agents.baselines import GridSearch, ObsPolicy, Policy, RulePolicy, mlp_regr
 from agents.retune_eval import OneShot, Sequential, evaluate_retune
 from agents.splits import EpisodeSpec
 
-WINDOW_AMORTISED, WINDOW_ANCHORED = "window_amortised", "window_anchored"
+WINDOW_AMORTISED, WINDOW_ANCHORED, WINDOW_RESIDUAL = "window_amortised", "window_anchored", "window_residual"
 
 
 @dataclass(frozen=True)
@@ -62,12 +71,26 @@ class WindowRegressorSettings:
     ensemble: int = 3  # MLPs fitted on the same data from different initialisations; their predictions are averaged
     margins: tuple[float, ...] = (0.0, 0.05, 0.1, 0.2, 0.3, np.inf)  # window_anchored: the predicted log-RMSE gains a
     # switch away from the anchor must exceed, one chosen on validation episodes (inf: never switch)
+    residual_step: float = 0.25  # window_residual: the largest offset from the anchor per action dimension (action units)
+    residual_points: int = 5  # window_residual: offsets per dimension, evenly spaced in [-step, step] (the zero one is the anchor)
 
 
 def candidate_grid(d: int, n: int) -> np.ndarray:
     """The (A, d) grid of actions in [-1, 1]^d with ``GridSearch(budget=n).points(d)`` values per dimension."""
     axis = np.linspace(-1.0, 1.0, GridSearch(budget=n).points(d))
     return np.array(list(product(axis, repeat=d)))
+
+
+def residual_offsets(d: int, step: float, points: int) -> np.ndarray:
+    """The (K, d) non-zero offsets of the grid with ``points`` values per dimension in [−step, step]."""
+    axis = np.linspace(-step, step, points)
+    grid = np.array(list(product(axis, repeat=d)))
+    return grid[np.any(grid != 0.0, axis=1)]
+
+
+def anchor_candidates(anchor_action: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """The anchor's action moved by each offset, within the action box [−1, 1]^d (K, d)."""
+    return np.clip(anchor_action + offsets, -1.0, 1.0)
 
 
 def window_labels(env: gym.Env, candidates: np.ndarray) -> np.ndarray | None:
@@ -81,20 +104,25 @@ def window_labels(env: gym.Env, candidates: np.ndarray) -> np.ndarray | None:
 
 
 def collect(env: gym.Env, noise_seeds: np.ndarray, candidates: np.ndarray, explore: float, rng: np.random.Generator,
-            progress: bool = False, anchor: OneShot | None = None) -> tuple[np.ndarray, np.ndarray]:
+            progress: bool = False, anchor: OneShot | None = None, around_anchor: bool = False
+            ) -> tuple[np.ndarray, np.ndarray]:
     """Observations (n, F) and centred log-RMSE labels (n, A) of every window of the episodes ``noise_seeds`` of
     ``env`` (a FilterRetune-v0 env of the train split), played with the behaviour policy of the module docstring.
     With ``anchor`` (a one-shot tuner of the train split) its action for the episode is candidate A + 1 (labels
-    (n, A + 1))."""
+    (n, A + 1)); with ``around_anchor`` too, ``candidates`` are offsets, the candidates are the anchor's action moved
+    by them, and each observation is followed by that action (n, F + d)."""
     obs_rows, labels = [], []
-    for s in tqdm(noise_seeds, desc=f"{WINDOW_AMORTISED} targets", disable=not progress, leave=False):
+    for s in tqdm(noise_seeds, desc=f"{WINDOW_RESIDUAL if around_anchor else WINDOW_AMORTISED} targets",
+                  disable=not progress, leave=False):
         obs, _ = env.reset(options={"noise_seed": int(s)})
-        actions = candidates if anchor is None else np.vstack([candidates, anchor.choose(obs, env)])
+        anchor_action = None if anchor is None else np.asarray(anchor.choose(obs, env), dtype=np.float64)
+        actions = candidates if anchor_action is None else np.vstack(
+            [anchor_candidates(anchor_action, candidates) if around_anchor else candidates, anchor_action])
         done = False
         while not done:
             y = window_labels(env, actions)
             if y is not None:
-                obs_rows.append(obs)
+                obs_rows.append(np.concatenate([obs, anchor_action]) if around_anchor else obs)
                 labels.append(y)
             explore_now = y is None or rng.random() < explore
             action = actions[rng.integers(len(actions))] if explore_now else actions[np.argmin(y)]
@@ -105,18 +133,28 @@ def collect(env: gym.Env, noise_seeds: np.ndarray, candidates: np.ndarray, explo
 
 
 def fit_regressor(env: gym.Env, noise_seeds: np.ndarray, *, settings: WindowRegressorSettings = WindowRegressorSettings(),
-                  seed: int = 0, anchor: OneShot | None = None, progress: bool = False) -> tuple[MeanRegressor, np.ndarray]:
+                  seed: int = 0, anchor: OneShot | None = None, residual: bool = False, progress: bool = False
+                  ) -> tuple[MeanRegressor, np.ndarray]:
     """The per-window regressor fitted on the windows of the train-split episodes ``noise_seeds`` of the
-    FilterRetune-v0 env ``env`` (with ``anchor``: one more output, the anchor's), and its candidates (A, d)."""
+    FilterRetune-v0 env ``env`` (with ``anchor``: one more output, the anchor's), and its candidates (A, d); with
+    ``residual`` (needs ``anchor``), the regressor of ``window_residual`` and its offsets from the anchor (K, d)."""
     if not 0.0 <= settings.explore <= 1.0:
         raise ValueError(f"explore={settings.explore}; allowed: 0 <= explore <= 1")
     if settings.ensemble < 1:
         raise ValueError(f"ensemble={settings.ensemble}; allowed: >= 1")
     if not settings.margins or any(np.isnan(m) or m < 0 for m in settings.margins):
         raise ValueError(f"margins={settings.margins}; allowed: one or more numbers >= 0 (inf: never switch)")
-    candidates = candidate_grid(env.unwrapped.action_map.dim, settings.candidates)
+    if residual and anchor is None:
+        raise ValueError(f"{WINDOW_RESIDUAL}: the offsets are from an anchor; pass anchor=")
+    if not (np.isfinite(settings.residual_step) and 0.0 < settings.residual_step <= 2.0):
+        raise ValueError(f"residual_step={settings.residual_step}; allowed: 0 < residual_step <= 2 (action units)")
+    if settings.residual_points < 2:
+        raise ValueError(f"residual_points={settings.residual_points}; allowed: >= 2")
+    d = env.unwrapped.action_map.dim
+    candidates = (residual_offsets(d, settings.residual_step, settings.residual_points) if residual
+                  else candidate_grid(d, settings.candidates))
     obs, labels = collect(env, noise_seeds, candidates, settings.explore, np.random.default_rng((seed, 7)), progress,
-                          anchor)
+                          anchor, around_anchor=residual)
     members = [mlp_regressor(settings.hidden, seed * settings.ensemble + k).fit(obs, labels)
                for k in range(settings.ensemble)]
     return MeanRegressor(members), candidates
@@ -144,15 +182,18 @@ class WindowRegressorPolicy(ObsPolicy):
 
 class AnchoredWindowPolicy(Policy):
     """Plays the anchor's action (a one-shot tuner's, asked once per episode) and, in a window, the candidate with
-    the lowest predicted log RMSE instead where that is below the anchor's prediction by more than ``margin``."""
+    the lowest predicted log RMSE instead where that is below the anchor's prediction by more than ``margin``. With
+    ``around_anchor`` (``window_residual``) ``candidates`` are offsets, the candidates are the anchor's action moved by
+    them and the regressor's input is the observation followed by that action; else they are fixed actions."""
 
     def __init__(self, regressor: Any, candidates: np.ndarray, anchor: OneShot, margin: float,
-                 name: str = WINDOW_ANCHORED) -> None:
+                 name: str = WINDOW_ANCHORED, around_anchor: bool = False) -> None:
         self.regressor = regressor
         self.candidates = candidates
         self.anchor = anchor
         self.margin = margin
         self.name = name
+        self.around_anchor = around_anchor
         self._anchor_action: np.ndarray | None = None
 
     def begin_episode(self) -> None:
@@ -161,18 +202,22 @@ class AnchoredWindowPolicy(Policy):
     def act(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
         if self._anchor_action is None:
             self._anchor_action = np.asarray(self.anchor.choose(obs, env), dtype=np.float64)
-        scores = self.regressor.predict(np.asarray(obs, dtype=np.float64)[None]).reshape(-1)
+        x = np.asarray(obs, dtype=np.float64)
+        x = np.concatenate([x, self._anchor_action]) if self.around_anchor else x
+        scores = self.regressor.predict(x[None]).reshape(-1)
         if len(scores) != len(self.candidates) + 1:
             raise ValueError(f"{self.name}: the regressor has {len(scores)} outputs; an anchored one has "
                              f"{len(self.candidates) + 1} (the candidates' and the anchor's)")
         gain = scores[-1] - scores[:-1]  # predicted log RMSE of the anchor minus each candidate's
         best = int(np.argmax(gain))
-        return self.candidates[best] if gain[best] > self.margin else self._anchor_action
+        if gain[best] <= self.margin:
+            return self._anchor_action
+        return anchor_candidates(self._anchor_action, self.candidates[best]) if self.around_anchor else self.candidates[best]
 
     def with_anchor(self, anchor: OneShot, margin: float | None = None) -> AnchoredWindowPolicy:
         """The same regressor with another anchor (e.g. the same model on another split's env) and margin."""
         return AnchoredWindowPolicy(self.regressor, self.candidates, anchor, self.margin if margin is None else margin,
-                                    name=self.name)
+                                    name=self.name, around_anchor=self.around_anchor)
 
 
 def select_margin(policy: AnchoredWindowPolicy, env: gym.Env, episodes: Sequence[EpisodeSpec],

@@ -33,7 +33,9 @@ search with the truth, carrying the filter state), window_amortised (a learned s
 regressor from the window's observation to every candidate action's log RMSE on the coming window, fitted on
 --train-episodes train episodes, agents.window_regressor; --fit-seeds K fits K of them), window_anchored (with
 --oneshot-model: the same regressor anchored at oneshot_learned's action, leaving it in a window only for a
-predicted gain above a margin chosen on --val-episodes val episodes or set with --anchor-margin), adaptive (Sage–Husa), imm
+predicted gain above a margin chosen on --val-episodes val episodes or set with --anchor-margin), window_residual (with
+--oneshot-model: a second regressor whose candidates are oneshot_learned's action moved by small offsets, leaving it the
+same way), adaptive (Sage–Husa), imm
 (IMM over two KF tunings) and the trained model(s), all on the frames after the warm-up window; summary.md adds
 the share of the one-shot → per-window gap each method closes, the paired log-ratio of every sequential tuner
 against oneshot_learned and, with several --model or --fit-seeds K > 1, their IQM and mean across seeds;
@@ -84,7 +86,7 @@ from agents.runs import ENV_ERRORS, SB3Policy, check_free, describe_held_feature
 from agents.safe_load import check_env_match
 from agents.seeds_report import profile_curves, seeds_section
 from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
-from agents.window_regressor import WINDOW_AMORTISED, WINDOW_ANCHORED
+from agents.window_regressor import WINDOW_AMORTISED, WINDOW_ANCHORED, WINDOW_RESIDUAL
 from envs.data.atomic_files import write_text_atomic
 from envs.episodes.config import EnvConfig
 
@@ -132,10 +134,10 @@ def build_parser() -> ArgumentParser:
                    help=f"{RETUNE_ENV} runs: a {ONE_STEP_ENV} run scored as oneshot_learned (its action for the whole "
                         "track); without it that row is left out")
     p.add_argument("--val-episodes", type=int_range(1, SPLIT_SIZE), default=None,
-                   help=f"{RETUNE_ENV} runs with --oneshot-model: val-split episodes the margin of {WINDOW_ANCHORED} is "
-                        f"chosen on (default {DEFAULT_VAL_EPISODES}; sim sources: OTB sources take every val sequence once)")
+                   help=f"{RETUNE_ENV} runs with --oneshot-model: val-split episodes the margins of {WINDOW_ANCHORED} and "
+                        f"{WINDOW_RESIDUAL} are chosen on (default {DEFAULT_VAL_EPISODES}; sim sources: OTB sources take every val sequence once)")
     p.add_argument("--anchor-margin", type=float_range(0.0), default=None, metavar="M",
-                   help=f"{RETUNE_ENV} runs with --oneshot-model: the margin of {WINDOW_ANCHORED} (predicted log-RMSE "
+                   help=f"{RETUNE_ENV} runs with --oneshot-model: the margin of {WINDOW_ANCHORED} and {WINDOW_RESIDUAL} (predicted log-RMSE "
                         "gain a switch away from the one-shot action must exceed), instead of choosing it on val episodes")
     p.add_argument("--trust-pickle", action="store_true",
                    help="accept an old run's pickled vecnormalize.pkl (pickles can run code: only for runs you trust)")
@@ -153,7 +155,8 @@ def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[s
         parser.error(f"--fit-seeds: only for runs of {RETUNE_ENV} (this one is of {env_id})")
     for flag, value in (("--val-episodes", args.val_episodes), ("--anchor-margin", args.anchor_margin)):
         if value is not None and args.oneshot_model is None:
-            parser.error(f"{flag}: only with --oneshot-model (it sets {WINDOW_ANCHORED}, which is anchored there)")
+            parser.error(f"{flag}: only with --oneshot-model (it sets {WINDOW_ANCHORED} and {WINDOW_RESIDUAL}, which are "
+                         "anchored there)")
     if args.val_episodes is not None and args.anchor_margin is not None:
         parser.error("--val-episodes: not used with --anchor-margin (no margin is chosen)")
     args.val_episodes = args.val_episodes or DEFAULT_VAL_EPISODES

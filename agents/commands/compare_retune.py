@@ -26,8 +26,8 @@ from agents.runs import ENV_ERRORS, SB3Policy, describe_held_features, load_conf
 from agents.safe_load import check_env_match
 from agents.seeds_report import seeds_section
 from agents.splits import EpisodeSpec, train_seeds
-from agents.window_regressor import (WINDOW_AMORTISED, WINDOW_ANCHORED, AnchoredWindowPolicy, WindowRegressorPolicy,
-                                     WindowRegressorSettings, fit_regressor, select_margin)
+from agents.window_regressor import (WINDOW_AMORTISED, WINDOW_ANCHORED, WINDOW_RESIDUAL, AnchoredWindowPolicy,
+                                     WindowRegressorPolicy, WindowRegressorSettings, fit_regressor, select_margin)
 from envs.data.atomic_files import write_text_atomic
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"
@@ -73,42 +73,59 @@ class Anchors:
 def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace, anchors: Anchors | None
                           ) -> tuple[list[WindowRegressorPolicy], list[AnchoredWindowPolicy], dict[str, dict[float, float]]]:
     """``--fit-seeds`` window regressors (agents.window_regressor), each on its own ``--train-episodes`` train
-    episodes, as ``window_amortised`` policies; with ``anchors`` also as ``window_anchored`` policies (anchored on
-    the test split), with the margin ``--anchor-margin`` or the one chosen on the val episodes (each margin's mean
-    log-ratio on them: the third item)."""
+    episodes, as ``window_amortised`` policies; with ``anchors`` also as ``window_anchored`` policies and, from a
+    second regressor on the same episodes, ``window_residual`` policies (both anchored on the test split), each with
+    the margin ``--anchor-margin`` or the one chosen on the val episodes (each margin's mean log-ratio on them: the
+    third item)."""
     amortised, anchored, val_means = [], [], {}
     for k in range(args.fit_seeds):
         seed = args.seed + k
         suffix = "" if args.fit_seeds == 1 else f"_s{seed}"
+        noise_seeds = train_seeds(np.random.default_rng(seed), args.train_episodes)
         start = time.perf_counter()
-        regressor, candidates = fit_regressor(train_env, train_seeds(np.random.default_rng(seed), args.train_episodes),
-                                              seed=seed, anchor=anchors and anchors.by_split["train"], progress=True)
+        regressor, candidates = fit_regressor(train_env, noise_seeds, seed=seed,
+                                              anchor=anchors and anchors.by_split["train"], progress=True)
         amortised.append(WindowRegressorPolicy(regressor, candidates, name=WINDOW_AMORTISED + suffix))
         print(f"fitted {amortised[-1].name} on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
         if anchors is None:
             continue
-        policy = AnchoredWindowPolicy(regressor, candidates, anchors.by_split["val"], margin=0.0,
-                                      name=WINDOW_ANCHORED + suffix)
-        margin = args.anchor_margin
-        if margin is None:
-            start = time.perf_counter()
-            margin, val_means[policy.name] = select_margin(policy, anchors.val_env, anchors.val_episodes,
-                                                           WindowRegressorSettings().margins)
-            print(f"{policy.name}: margin {margin} chosen on {len(anchors.val_episodes)} val episodes "
-                  f"({time.perf_counter() - start:.0f} s): {val_means[policy.name]}")
-        anchored.append(policy.with_anchor(anchors.by_split["test"], margin))
+        start = time.perf_counter()
+        residual = fit_regressor(train_env, noise_seeds, seed=seed, anchor=anchors.by_split["train"], residual=True,
+                                 progress=True)
+        print(f"fitted {WINDOW_RESIDUAL}{suffix} on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
+        for name, (fitted, actions), around_anchor in ((WINDOW_ANCHORED, (regressor, candidates), False),
+                                                       (WINDOW_RESIDUAL, residual, True)):
+            policy = AnchoredWindowPolicy(fitted, actions, anchors.by_split["val"], margin=0.0, name=name + suffix,
+                                          around_anchor=around_anchor)
+            margin = args.anchor_margin
+            if margin is None:
+                start = time.perf_counter()
+                margin, val_means[policy.name] = select_margin(policy, anchors.val_env, anchors.val_episodes,
+                                                               WindowRegressorSettings().margins)
+                print(f"{policy.name}: margin {margin} chosen on {len(anchors.val_episodes)} val episodes "
+                      f"({time.perf_counter() - start:.0f} s): {val_means[policy.name]}")
+            anchored.append(policy.with_anchor(anchors.by_split["test"], margin))
     return amortised, anchored, val_means
 
 
 def anchored_settings(anchored: list[AnchoredWindowPolicy], val_means: dict[str, dict[float, float]],
-                      anchors: Anchors) -> str:
-    """summary.md's line on the ``window_anchored`` policies: their margins and how they were chosen."""
-    chosen = ", ".join(f"{p.name} {p.margin:g}" for p in anchored)
+                      anchors: Anchors, around_anchor: bool) -> str:
+    """summary.md's line on the ``window_anchored`` (or, with ``around_anchor``, ``window_residual``) policies: their
+    candidates, margins and how the margins were chosen."""
+    policies = [p for p in anchored if p.around_anchor == around_anchor]
+    if around_anchor:
+        settings = WindowRegressorSettings()
+        what = (f"a second regressor on the same episodes whose candidates are `oneshot_learned`'s action moved by "
+                f"{len(policies[0].candidates)} offsets ({settings.residual_points} per dimension in ±{settings.residual_step:g}, "
+                f"clipped to the action box), its input the observation and that action")
+    else:
+        what = "the same regressor(s), anchored at `oneshot_learned`'s action"
+    chosen = ", ".join(f"{p.name} {p.margin:g}" for p in policies)
     if not val_means:
-        return f"the same regressor(s), anchored at `oneshot_learned`'s action; margin (--anchor-margin): {chosen}"
-    tried = "; ".join(f"{name}: " + ", ".join(f"{m:g} {v:+.3f}" for m, v in means.items()) for name, means in val_means.items())
-    return (f"the same regressor(s), anchored at `oneshot_learned`'s action; margin chosen on {len(anchors.val_episodes)} "
-            f"val-split episodes: {chosen} (mean log-ratio vs rule there per margin — {tried})")
+        return f"{what}; margin (--anchor-margin): {chosen}"
+    tried = "; ".join(f"{p.name}: " + ", ".join(f"{m:g} {v:+.3f}" for m, v in val_means[p.name].items()) for p in policies)
+    return (f"{what}; margin chosen on {len(anchors.val_episodes)} val-split episodes: {chosen} (mean log-ratio vs "
+            f"rule there per margin — {tried})")
 
 
 def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwargs: tuple[gym.Env, gym.Env, dict[str, Any]],
@@ -139,7 +156,7 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     title = f"{cfg['algo']} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
     gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
     ex = result.example
-    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, *(p.name for p in anchored[:1]), learned[0].name)
+    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, *(p.name for p in anchored[:2]), learned[0].name)
     shown = {k: v for k, v in ex["schedules"].items() if k in plotted}
     parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
     settings_md = {"command": f"`{command}`", "model": models_described,
@@ -155,7 +172,8 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                                      f"{args.seed + args.fit_seeds - 1})"
                                      + (f"; its candidates include the `oneshot_learned` action (the anchor of "
                                         f"{WINDOW_ANCHORED})" if anchors else ""),
-                   **({WINDOW_ANCHORED: anchored_settings(anchored, val_means, anchors)} if anchors else {}),
+                   **({WINDOW_ANCHORED: anchored_settings(anchored, val_means, anchors, around_anchor=False),
+                       WINDOW_RESIDUAL: anchored_settings(anchored, val_means, anchors, around_anchor=True)} if anchors else {}),
                    "env": f"`{env_kwargs}`",
                    "test episodes": described,
                    "scored frames": f"every frame after the warm-up window (the first {config.window}, filtered by the rule "
@@ -167,7 +185,8 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                                n_boot=args.bootstrap, seed=args.seed, rmse_oracle=WINDOW_ORACLE)
     if len(regressors) > 1:
         groups = {**groups, WINDOW_AMORTISED: [p.name for p in regressors]}
-        groups.update({WINDOW_ANCHORED: [p.name for p in anchored]} if anchored else {})
+        groups.update({name: [p.name for p in anchored if p.name.startswith(name)]
+                       for name in (WINDOW_ANCHORED, WINDOW_RESIDUAL) if anchored})
     head, figures = summary.split("## Figures")
     seeds = seeds_section(result.rows, groups, n_boot=args.bootstrap, seed=args.seed,
                           reference=[m for m in ("raw", "rule", ONESHOT_LEARNED, ONESHOT_ORACLE, WINDOW_ORACLE)

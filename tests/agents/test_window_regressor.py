@@ -10,8 +10,8 @@ import envs  # noqa: F401  (registers the ids)
 from agents.baselines import RulePolicy
 from agents.retune_eval import OneShot, Sequential, evaluate_retune
 from agents.splits import EpisodeSpec, eval_seeds, train_seeds
-from agents.window_regressor import (AnchoredWindowPolicy, WindowRegressorPolicy, WindowRegressorSettings, candidate_grid,
-                                     collect, fit_regressor, select_margin, window_labels)
+from agents.window_regressor import (AnchoredWindowPolicy, WindowRegressorPolicy, WindowRegressorSettings, anchor_candidates,
+                                     candidate_grid, collect, fit_regressor, residual_offsets, select_margin, window_labels)
 
 RETUNE = "bboxtune/FilterRetune-v0"
 
@@ -149,3 +149,71 @@ def test_anchored_fit_beats_its_anchor_on_held_out_windows() -> None:
     env, episodes = _env(split="val"), [EpisodeSpec(int(s)) for s in eval_seeds("val", 6)]
     _, means = select_margin(AnchoredWindowPolicy(regressor, cands, anchor, 0.0), env, episodes, (0.0, np.inf))
     assert means[0.0] > means[np.inf] + 0.5, means  # measured: +0.08 against −1.51
+
+
+def test_residual_offsets_leave_out_zero_and_stay_in_the_box() -> None:
+    offsets = residual_offsets(3, 0.25, 5)
+    np.testing.assert_array_equal(residual_offsets(2, 0.25, 3)[6], [0.25, 0.0])
+    assert offsets.shape == (5**3 - 1, 3) and np.all(np.any(offsets != 0.0, axis=1))
+    assert offsets.min() == -0.25 and offsets.max() == 0.25 and len(np.unique(offsets, axis=0)) == len(offsets)
+    moved = anchor_candidates(np.array([0.9, -1.0, 0.0]), offsets)
+    assert moved.min() == -1.0 and moved.max() == 1.0 and moved[:, 2].max() == 0.25
+
+
+class RecordingScores(ConstantScores):
+    """ConstantScores that keeps the inputs it was asked about."""
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        self.seen = x
+        return super().predict(x)
+
+
+def test_residual_collect_and_policy_move_around_the_anchor() -> None:
+    """window_residual: the candidates are the anchor moved by the offsets (labels: those and the anchor), the input is
+    the observation followed by the anchor's action, and the policy plays anchor + the best offset above the margin."""
+    env, anchor = _env(), np.array([0.9, -0.2])
+    offsets = residual_offsets(2, 0.25, 3)
+    seeds = train_seeds(np.random.default_rng(0), 2)
+    obs, y = collect(env, seeds, offsets, 0.5, np.random.default_rng(1), anchor=FixedOneShot(anchor),
+                     around_anchor=True)
+    width = env.observation_space.shape[0]
+    assert y.shape == (2 * 9, len(offsets) + 1) and obs.shape == (2 * 9, width + 2)
+    np.testing.assert_array_equal(obs[:, width:], np.tile(anchor, (len(obs), 1)))
+    first, _ = env.reset(options={"noise_seed": int(seeds[0])})
+    np.testing.assert_array_equal(obs[0, :width], first)
+    np.testing.assert_allclose(y[0], window_labels(env, np.vstack([np.clip(anchor + offsets, -1, 1), anchor])), rtol=1e-12)
+    scores = np.zeros(len(offsets) + 1)
+    scores[6], scores[-1] = -0.25, 0.05  # offset 6 (+0.25, 0): predicted 0.3 below the anchor
+    for margin, expected in ((0.2, [1.0, -0.2]), (0.3, anchor)):  # 0.9 + 0.25 clipped to the box
+        regressor = RecordingScores(scores)
+        policy = AnchoredWindowPolicy(regressor, offsets, FixedOneShot(anchor), margin, around_anchor=True)
+        policy.begin_episode()
+        np.testing.assert_allclose(policy.act(first, env), expected)
+        np.testing.assert_array_equal(regressor.seen, np.concatenate([first, anchor])[None])
+        assert policy.with_anchor(FixedOneShot(anchor), 0.0).around_anchor
+
+
+@pytest.mark.parametrize(("settings", "anchor", "message"), [
+    (WindowRegressorSettings(), None, "offsets are from an anchor"),
+    (WindowRegressorSettings(residual_step=0.0), np.zeros(2), "residual_step=0.0; allowed: 0 < residual_step <= 2"),
+    (WindowRegressorSettings(residual_step=float("nan")), np.zeros(2), "residual_step=nan"),
+    (WindowRegressorSettings(residual_points=1), np.zeros(2), "residual_points=1; allowed: >= 2"),
+])
+def test_residual_fit_refuses_bad_settings(settings: WindowRegressorSettings, anchor: np.ndarray | None,
+                                           message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        fit_regressor(_env(), np.array([1]), settings=settings, residual=True,
+                      anchor=None if anchor is None else FixedOneShot(anchor))
+
+
+def test_residual_fit_moves_a_poor_anchor_towards_better_actions() -> None:
+    """From the action box's corner, offsets of up to 0.5 reach better actions, and the fitted residual regressor finds
+    them: with margin 0 the log-ratio against the rule on val episodes is above the anchor's own."""
+    settings = WindowRegressorSettings(hidden=(32,), residual_step=0.5, residual_points=3)
+    anchor = FixedOneShot(np.array([1.0, 1.0]))
+    regressor, offsets = fit_regressor(_env(), train_seeds(np.random.default_rng(2), 30), settings=settings,
+                                       anchor=anchor, residual=True)
+    env, episodes = _env(split="val"), [EpisodeSpec(int(s)) for s in eval_seeds("val", 6)]
+    policy = AnchoredWindowPolicy(regressor, offsets, anchor, 0.0, around_anchor=True)
+    _, means = select_margin(policy, env, episodes, (0.0, np.inf))
+    assert means[0.0] > means[np.inf] + 0.2, means

@@ -15,7 +15,7 @@ from .tiny_run import TINY, tiny_run, train  # noqa: F401  (fixtures)
 
 METHODS = {"raw", "rule", "oneshot_oracle", "oneshot_learned", "oneshot_learned_online", "window_oracle", "adaptive", "imm",
            "ppo_s0", "ppo_s1", "ppo_best_s0", "ppo_best_s1", "window_amortised_s0", "window_amortised_s1",
-           "window_anchored_s0", "window_anchored_s1"}
+           "window_anchored_s0", "window_anchored_s1", "window_residual_s0", "window_residual_s1"}
 EPISODES = 4
 NONSTATIONARY = ["--env-kwargs", "track_length:100", "scenario:nonstationary"]
 
@@ -51,10 +51,14 @@ def test_compare_scores_retune_runs_against_every_baseline(runs: tuple[Path, Pat
     assert "## Re-tuning: the one-shot → per-window gap" in summary and "Paired: sequential against oneshot_learned" in summary
     assert "| window_amortised_s1 |" in summary.split("Paired: sequential against oneshot_learned")[1]
     assert "| window_anchored_s1 |" in summary.split("Paired: sequential against oneshot_learned")[1]
+    assert "| window_residual_s1 |" in summary.split("Paired: sequential against oneshot_learned")[1]
     assert "margin chosen on 2 val-split episodes: window_anchored_s0 " in summary
+    assert "moved by 24 offsets (5 per dimension in ±0.25" in summary  # ufir_cmn: 2 action dimensions
+    assert "val-split episodes: window_residual_s0 " in summary
     assert "oneshot_learned: `" in summary and (out / "parameter_schedule.png").stat().st_size > 0
     seeds = summary.split("## Across training seeds")[1].split("## Figures")[0]
-    for row in ("| ppo | 2 |", "| ppo_best | 2 |", "| window_amortised | 2 |", "| window_anchored | 2 |", "| rule | 1 | +0.000 [+0.000, +0.000]",
+    for row in ("| ppo | 2 |", "| ppo_best | 2 |", "| window_amortised | 2 |", "| window_anchored | 2 |", "| window_residual | 2 |",
+                "| rule | 1 | +0.000 [+0.000, +0.000]",
                 "| oneshot_learned | 1 |", "| window_oracle | 1 |"):
         assert row in seeds
 
@@ -97,12 +101,13 @@ def test_an_offline_view_run_is_scored_and_a_causal_model_is_refused_there(train
                        "--bootstrap", "50", "--train-episodes", "11", "--anchor-margin", "1e9", "--out", str(tmp_path / "c")])
     with open(out / "results.csv") as fh:
         rows = list(csv.DictReader(fh))
-    assert {"ppo", "window_amortised", "window_anchored", "oneshot_learned"} <= {r["method"] for r in rows}
+    assert {"ppo", "window_amortised", "window_anchored", "window_residual", "oneshot_learned"} <= {r["method"] for r in rows}
     rmse = {(r["method"], r["episode"]): r["rmse"] for r in rows}
     for e in ("0", "1"):  # a margin no prediction exceeds: the one-shot tuner's action in every window
-        assert rmse["window_anchored", e] == rmse["oneshot_learned", e]
+        assert rmse["window_anchored", e] == rmse["window_residual", e] == rmse["oneshot_learned", e]
     summary = (out / "summary.md").read_text()
     assert "'retune_view': 'offline'" in summary and "margin (--anchor-margin): window_anchored 1e+09" in summary
+    assert "margin (--anchor-margin): window_residual 1e+09" in summary
     with pytest.raises(SystemExit) as exc:
         compare.run(["--model", str(causal), "--env-kwargs", "retune_view:offline", "--episodes", "2",
                      "--out", str(tmp_path / "refused")])
