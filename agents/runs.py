@@ -42,7 +42,7 @@ from agents.hyperparams import load_hyperparams
 from agents.run_files import RunError, load_normalizer
 from agents.safe_load import load_model
 from agents.splits import SplitSeeds, train_seeds
-from envs import ENV_IDS
+from envs import RETUNE_ID
 from envs.episodes.config import EnvConfig
 from envs.episodes.features import FEATURE_NAMES
 from envs.retune_env import retune_observation_names
@@ -54,7 +54,6 @@ MODEL_KEYS = {"algo": str, "env_id": str, "env_kwargs": dict, "hyperparams": dic
 RESUME_KEYS = {**MODEL_KEYS, "total_timesteps": int, "eval_freq": int, "eval_episodes": int, "checkpoint_freq": int,
                "tensorboard": bool}
 ENV_ERRORS = (gym.error.Error, ValueError, TypeError, KeyError, OSError)  # what a bad env id / env kwargs raise
-RETUNE_ID = ENV_IDS[1]  # bboxtune/FilterRetune-v0
 # a feature whose VecNormalize variance, net of the running statistics' prior, is below this did not vary in
 # training; the smallest real one in the shipped tuners (acf3_d2_pos) is ~3e-3
 CONSTANT_FEATURE_VAR = 1e-6

@@ -13,9 +13,10 @@ tests run Gymnasium's and SB3's full checkers instead.
 
 from gymnasium.envs.registration import register, registry
 
-ENV_IDS = ("bboxtune/FilterTune-v0", "bboxtune/FilterRetune-v0")
+TUNE_ID, RETUNE_ID = "bboxtune/FilterTune-v0", "bboxtune/FilterRetune-v0"
+ENV_IDS = (TUNE_ID, RETUNE_ID)
 
-_VECTOR_ENTRY_POINTS = {"bboxtune/FilterTune-v0": "envs.vector:TuneVectorEnv"}
+_VECTOR_ENTRY_POINTS = {TUNE_ID: "envs.vector:TuneVectorEnv"}
 
 for _id, _entry in zip(ENV_IDS, ("envs.tune_env:FilterTuneEnv", "envs.retune_env:FilterRetuneEnv")):
     if _id not in registry:
@@ -23,4 +24,4 @@ for _id, _entry in zip(ENV_IDS, ("envs.tune_env:FilterTuneEnv", "envs.retune_env
 
 from envs.vector import make_vec  # noqa: E402  (after registration: make_vec is gym.make_vec on these ids)
 
-__all__ = ["ENV_IDS", "make_vec"]
+__all__ = ["ENV_IDS", "RETUNE_ID", "TUNE_ID", "make_vec"]

@@ -28,10 +28,10 @@ from agents.seeds_report import seeds_section
 from agents.splits import EpisodeSpec, train_seeds
 from agents.window_regressor import (WINDOW_AMORTISED, WINDOW_ANCHORED, WINDOW_RESIDUAL, AnchoredWindowPolicy,
                                      WindowRegressorPolicy, WindowRegressorSettings, fit_regressor, select_margin)
+from envs import RETUNE_ID, TUNE_ID
 from envs.data.atomic_files import write_text_atomic
 
-ONE_STEP_ENV = "bboxtune/FilterTune-v0"
-RETUNE_ENV = "bboxtune/FilterRetune-v0"
+ONE_STEP_ENV, RETUNE_ENV = TUNE_ID, RETUNE_ID
 
 
 def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneShotLearned:
