@@ -101,6 +101,15 @@ def evaluation_episodes(env: gym.Env, split: str, *, episodes: int | None, seeds
                         has_output=lambda tracker, sequence: sequence in outputs[tracker])
 
 
+def val_episodes(env: gym.Env, n: int, seeds_per_sequence: int = 1) -> list[EpisodeSpec]:
+    """Validation episodes of ``env`` (built with split "val") to choose a setting on: ``n`` drawn episodes for sim
+    and video sources, every val sequence × ``seeds_per_sequence`` noise seeds for "otb" and every val sequence ×
+    tracker for "otb_tracker"."""
+    source = env.unwrapped.config.source
+    return evaluation_episodes(env, "val", episodes=None if source in OTB_SOURCES else n,
+                               seeds_per_sequence=seeds_per_sequence if source == "otb" else None)
+
+
 @dataclass
 class Evaluation:
     """Per-episode records and the pieces the plots need."""

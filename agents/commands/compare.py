@@ -22,8 +22,11 @@ measurement is scored as a missing estimate: a failure for success AUC / precisi
 rule_est_sigma, rule_true_sigma (sim only), oracle (per-episode search maximising the env's reward with the
 truth), oracle_auc (maximising success AUC; oracle_rmse, minimising RMSE, when the reward is not RMSE), global,
 amortised, adaptive, the trained model (named by its algorithm, e.g. ppo) and its best-on-validation checkpoint
-(<algo>_best). All methods see the same episodes (common random numbers); global and amortised are fitted on
-train-split episodes of the evaluation env.
+(<algo>_best); with --gate also each final model gated (<algo>_gated, agents.gate: its action where a ridge
+regressor predicts that it beats the trust-the-measurement action by more than a margin chosen on val episodes, that
+action elsewhere). All methods see the same episodes (common random numbers); global and amortised are fitted on
+train-split episodes of the evaluation env, the gates on train- and val-split episodes of the run's own env (so a
+transfer evaluation stays one).
 
 Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by agents.retune_eval instead: raw, rule (every
 window), oneshot_oracle (the best single action for the track, with the truth), oneshot_learned (--oneshot-model
@@ -78,6 +81,7 @@ from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, float_range
                         nonnegative_int, out_dir, positive_int, tracker_set)
 from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,
                              standard_policies)
+from agents.gate import GATED, fit_gates
 from agents.plots import gain_boxplot, otb_curves, performance_profile, trajectories
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.commands.compare_retune import ONE_STEP_ENV, RETUNE_ENV, compare_retune, load_oneshot
@@ -94,7 +98,7 @@ ENVS = (ONE_STEP_ENV, RETUNE_ENV)
 MIN_TRAIN_EPISODES = 11  # AmortisedPolicy's MLP holds out ceil(10 %) for early stopping and needs >= 2 of them
 DEFAULT_EPISODES = 500  # sim / video
 DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episodes
-DEFAULT_VAL_EPISODES = 100  # FilterRetune-v0 with --oneshot-model: the episodes window_anchored's margin is chosen on
+DEFAULT_VAL_EPISODES = 100  # sim / video val episodes the margins of window_anchored/_residual (--oneshot-model) and the gates (--gate) are chosen on
 
 
 def build_parser() -> ArgumentParser:
@@ -135,10 +139,17 @@ def build_parser() -> ArgumentParser:
                         "track); without it that row is left out")
     p.add_argument("--val-episodes", type=int_range(1, SPLIT_SIZE), default=None,
                    help=f"{RETUNE_ENV} runs with --oneshot-model: val-split episodes the margins of {WINDOW_ANCHORED} and "
-                        f"{WINDOW_RESIDUAL} are chosen on (default {DEFAULT_VAL_EPISODES}; sim sources: OTB sources take every val sequence once)")
+                        f"{WINDOW_RESIDUAL} are chosen on; with --gate, those of the gates (default {DEFAULT_VAL_EPISODES}; "
+                        "sim and video sources: OTB sources take every val sequence, once for the anchored margins and "
+                        "--seeds-per-sequence times for the gates, and every tracker's output of it)")
     p.add_argument("--anchor-margin", type=float_range(0.0), default=None, metavar="M",
                    help=f"{RETUNE_ENV} runs with --oneshot-model: the margin of {WINDOW_ANCHORED} and {WINDOW_RESIDUAL} (predicted log-RMSE "
                         "gain a switch away from the one-shot action must exceed), instead of choosing it on val episodes")
+    p.add_argument("--gate", action="store_true",
+                   help=f"{ONE_STEP_ENV} runs: also score each final model gated as <algo>{GATED}[_s<seed>] (agents.gate: "
+                        "its action where a regressor predicts it beats no smoothing by more than a margin, else the "
+                        "trust-the-measurement action; fitted on --train-episodes train and chosen on --val-episodes val "
+                        "episodes of the run's own env)")
     p.add_argument("--trust-pickle", action="store_true",
                    help="accept an old run's pickled vecnormalize.pkl (pickles can run code: only for runs you trust)")
     return p
@@ -153,10 +164,14 @@ def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[s
         parser.error(f"--oneshot-model: only for runs of {RETUNE_ENV} (this one is of {env_id})")
     if args.fit_seeds != 1 and env_id != RETUNE_ENV:
         parser.error(f"--fit-seeds: only for runs of {RETUNE_ENV} (this one is of {env_id})")
-    for flag, value in (("--val-episodes", args.val_episodes), ("--anchor-margin", args.anchor_margin)):
-        if value is not None and args.oneshot_model is None:
-            parser.error(f"{flag}: only with --oneshot-model (it sets {WINDOW_ANCHORED} and {WINDOW_RESIDUAL}, which are "
-                         "anchored there)")
+    if args.gate and env_id != ONE_STEP_ENV:
+        parser.error(f"--gate: only for runs of {ONE_STEP_ENV} (this one is of {env_id})")
+    if args.anchor_margin is not None and args.oneshot_model is None:
+        parser.error(f"--anchor-margin: only with --oneshot-model (it sets {WINDOW_ANCHORED} and {WINDOW_RESIDUAL}, "
+                     "which are anchored there)")
+    if args.val_episodes is not None and args.oneshot_model is None and not args.gate:
+        parser.error(f"--val-episodes: only with --oneshot-model ({WINDOW_ANCHORED} and {WINDOW_RESIDUAL}'s margins) or "
+                     "--gate (the gates' margins)")
     if args.val_episodes is not None and args.anchor_margin is not None:
         parser.error("--val-episodes: not used with --anchor-margin (no margin is chosen)")
     args.val_episodes = args.val_episodes or DEFAULT_VAL_EPISODES
@@ -297,7 +312,17 @@ def run(argv: list[str] | None = None) -> Path:
     start = time.perf_counter()
     fitted = fit_baselines(train_env, oracle, settings, progress=True)
     print(f"fitted global and amortised on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
-    policies = [*standard, *fitted, *learned]
+    gated, gate_line = [], None
+    if args.gate:
+        start = time.perf_counter()
+        finals = [p for p in learned if not p.name.startswith(f"{algo}_best")]
+        gated, gate_line = fit_gates(finals, env_id, cfg["env_kwargs"], train_episodes=args.train_episodes,
+                                     n_val=args.val_episodes, seeds_per_sequence=args.seeds_per_sequence or
+                                     DEFAULT_SEEDS_PER_SEQUENCE, seed=args.seed)
+        print(f"fitted {len(gated)} gate(s) in {time.perf_counter() - start:.0f} s: {gate_line}")
+        if groups:
+            groups[f"{algo}{GATED}"] = [p.name for p in gated]
+    policies = [*standard, *fitted, *learned, *gated]
     start = time.perf_counter()
     result = evaluate(test_env, policies, episodes, progress=True)
     print(f"scored {len(policies) + 2} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
@@ -321,10 +346,12 @@ def run(argv: list[str] | None = None) -> Path:
                                           f"{args.global_trials} TPE trials on {settings.global_episodes} of them",
                    "oracle": f"grid of <= {search.budget} actions, then {search.rounds} local refinements "
                              f"({search.refine} points per dimension) maximising the env's reward ({config.reward}); "
-                             f"{other}; the rules' actions are candidates"}
+                             f"{other}; the rules' actions are candidates",
+                   **({"gate (--gate)": gate_line} if gate_line else {})}
     attributes = ({name: test_env.unwrapped.source.dataset.sequence(name).attributes for name in
                    {e.sequence for e in episodes}} if source in OTB_SOURCES else None)
-    summary = summary_markdown(result.rows, result.truth_at_test, learned=[p.name for p in learned], title=title,
+    summary = summary_markdown(result.rows, result.truth_at_test, learned=[p.name for p in (*learned, *gated)],
+                               title=title,
                                settings=settings_md, figures=["gain_boxplot.png", "otb_curves.png", "trajectory.png",
                                                                  *(["performance_profile.png"] if groups else [])],
                                n_boot=args.bootstrap, seed=args.seed,

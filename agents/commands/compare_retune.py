@@ -15,7 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.baselines import GridSearch, RulePolicy
-from agents.evaluate import OTB_SOURCES, evaluation_episodes
+from agents.evaluate import val_episodes
 from agents.plots import gain_boxplot, parameter_schedule
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.report_retune import retune_tables
@@ -63,11 +63,7 @@ class Anchors:
         by_split = {split: OneShotLearned(oneshot.policy, make_env(ONE_STEP_ENV, env_kwargs, split=split))
                     for split in ("train", "val")}
         val_env = make_env(RETUNE_ENV, env_kwargs, split="val")
-        source = val_env.unwrapped.config.source
-        counted = source not in OTB_SOURCES
-        episodes = evaluation_episodes(val_env, "val", episodes=n_val if counted else None,
-                                       seeds_per_sequence=1 if source == "otb" else None)
-        return cls({**by_split, "test": oneshot}, val_env, episodes)
+        return cls({**by_split, "test": oneshot}, val_env, val_episodes(val_env, n_val))
 
 
 def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace, anchors: Anchors | None

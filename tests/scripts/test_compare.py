@@ -159,13 +159,16 @@ def test_several_seeds_are_scored_together_and_aggregated(tiny_run: Path, train,
     from .tiny_run import TINY
 
     second = train.run([*TINY, "--seed", "1", "--out", str(tmp_path / "s1")])
-    out = compare_command.run(["--model", str(tiny_run), str(second), *FAST, "--episodes", "4", "--out", str(tmp_path / "both")])
+    out = compare_command.run(["--model", str(tiny_run), str(second), *FAST, "--episodes", "4", "--gate", "--val-episodes", "4",
+                               "--out", str(tmp_path / "both")])
     table = rows(out)
-    assert {"ppo_s0", "ppo_s1", "ppo_best_s0", "ppo_best_s1", "rule", "oracle"} <= {r["method"] for r in table}
+    assert {"ppo_s0", "ppo_s1", "ppo_best_s0", "ppo_best_s1", "ppo_gated_s0", "ppo_gated_s1", "rule", "oracle"} <= \
+        {r["method"] for r in table}
     assert of(table, "ppo_s0", "episode") == of(table, "ppo_s1", "episode") == ["0", "1", "2", "3"]  # the same episodes
     summary = (out / "summary.md").read_text()
     section = summary.split("## Across training seeds")[1]
     assert "| ppo | 2 |" in section and "| ppo_best | 2 |" in section and "| rule | 1 | +0.000 [+0.000, +0.000]" in section
+    assert "| ppo_gated | 2 |" in section
     assert (out / "performance_profile.png").stat().st_size > 0
     for argv, match in ((["--model", str(tiny_run), str(second)], "--out: required with several --model"),
                         (["--model", str(tiny_run), str(tiny_run), "--out", str(tmp_path / "x")], "seed 0 again")):
@@ -173,3 +176,20 @@ def test_several_seeds_are_scored_together_and_aggregated(tiny_run: Path, train,
         with pytest.raises(SystemExit) as exit_info:
             compare_command.main(argv)
         assert exit_info.value.code == 2 and match in capsys.readouterr().err
+
+
+def test_gate_plays_the_model_or_no_smoothing(tiny_run: Path, tmp_path: Path) -> None:
+    """--gate: ppo_gated plays, per episode, either the model's parameters or the trust-the-measurement action's
+    (ufir_cmn: ψ = 0, N = 2); the summary names the gate's fit and the chosen margin. --gate is refused for a run it
+    does not apply to (FilterRetune-v0: tests/scripts/test_compare_retune.py)."""
+    out = compare(tiny_run, tmp_path / "gate", "--episodes", str(EPISODES), "--gate", "--val-episodes", "5")
+    table = rows(out)
+    ppo, gated = ({int(r["episode"]): r for r in table if r["method"] == m} for m in ("ppo", "ppo_gated"))
+    assert len(gated) == EPISODES
+    keys = ("param_psi", "param_horizon", "rmse")
+    for e, row in gated.items():
+        assert [row[k] for k in keys] == [ppo[e][k] for k in keys] or \
+            (float(row["param_psi"]), float(row["param_horizon"])) == (0.0, 2.0)
+    summary = (out / "summary.md").read_text()
+    assert "- gate (--gate): the run's own env" in summary and "24 train-split episodes" in summary
+    assert "5 val-split episodes; ppo_gated margin" in summary and "## Paired: ppo_gated against each method" in summary

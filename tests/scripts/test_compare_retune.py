@@ -79,6 +79,7 @@ def test_oneshot_model_must_be_a_one_step_run(runs: tuple[Path, Path, Path], tmp
     (["--anchor-margin", "-0.1"], True, "invalid value '-0.1'; allowed: finite numbers >= 0"),
     (["--anchor-margin", "nan"], True, "invalid value 'nan'"),
     (["--val-episodes", "0"], True, "--val-episodes"),
+    (["--gate"], False, "--gate: only for runs of bboxtune/FilterTune-v0"),
 ])
 def test_anchor_flags_are_checked_before_any_work(runs: tuple[Path, Path, Path], tmp_path: Path, flags: list[str],
                                                   with_oneshot: bool, message: str, capsys: pytest.CaptureFixture[str]) -> None:
