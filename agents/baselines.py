@@ -54,6 +54,11 @@ class Policy(ABC):
     def begin_episode(self) -> None:
         """Called before an episode's first ``act`` (a policy with a memory forgets the last episode here)."""
 
+    def leaves_alone(self, obs: np.ndarray) -> bool:
+        """Whether the policy leaves this episode's measurements as they are (no filter; ``agents.gate``): the
+        evaluation then scores the measurements themselves, as it scores ``raw``, instead of the action."""
+        return False
+
 
 class ObsPolicy(Policy):
     """A policy of the observation only."""

@@ -7,6 +7,9 @@ estimates of their own, scored on the same measurements with ``envs.episodes.sco
 measurements themselves (no filter), and the Sage–Husa adaptive KF (:mod:`agents.adaptive`). So all methods see
 identical data (common random numbers).
 
+A policy that leaves an episode alone (``Policy.leaves_alone``: the gated tuners of :mod:`agents.gate`) is scored
+there on the measurements themselves, exactly as ``raw``, with NaN parameters.
+
 ``raw`` and missing measurements: a frame without a measurement (a NaN row of ``y``, e.g. a tracker that lost
 the target) is a missing estimate, scored as the scorer scores any missing estimate — a failure for success
 AUC and precision (IoU 0, infinite centre error) and left out of the RMSE (which then covers the frames that
@@ -141,9 +144,10 @@ def evaluate(env: gym.Env, policies: Sequence[Policy], episodes: Sequence[Episod
         for p in policies:
             p.begin_episode()
         actions = np.stack([p.act(obs, env) for p in policies])
-        results = [base.score(a[None]) for a in actions]
-        estimates = [ep.y[None], *(r["estimates"] for r in results)]
-        params = {k: np.array([np.nan, *(float(r["params"][k][0]) for r in results)]) for k in results[0]["params"]}
+        results = [None if p.leaves_alone(obs) else base.score(a[None]) for p, a in zip(policies, actions)]
+        estimates = [ep.y[None], *(ep.y[None] if r is None else r["estimates"] for r in results)]
+        keys = next(r for r in results if r is not None)["params"]  # the rule's at least
+        params = {k: np.array([np.nan, *(np.nan if r is None else float(r["params"][k][0]) for r in results)]) for k in keys}
         if adaptive is not None:
             estimates.append(sage_husa_positions(ep.y[None], ep.tau, ep.nominal.sigma_w, ep.nominal.sigma_v, adaptive))
             params = {k: np.append(v, np.nan) for k, v in params.items()}

@@ -3,24 +3,27 @@
 Behind a strong tracker, smoothing has little to gain. On the held-out trackers' output the per-sequence oracle
 gains +0.004 success AUC, and a tuner's small misjudgements cost about as much. So a tuner that always smooths ends
 a little below the raw measurements (README, "Held-out trackers' output"). The gated tuner (``<model>_gated`` in
-``scripts/compare.py --gate``) plays the model's action only where it predicts that action beats the back end's
-trust-the-measurement action (:func:`envs.episodes.actions.trust_measurement_action`: no smoothing) by more than a
-margin. Elsewhere it plays the trust action. Both parts are learned where the model was trained, never on the
-episodes it is scored on:
+``scripts/compare.py --gate``) uses the model's action only where it predicts that the action beats the raw
+measurements by more than a margin. Elsewhere it leaves the track alone: its estimate is the measurements
+themselves, scored exactly as ``raw`` (``Policy.leaves_alone``). Not a trust-the-measurement action: those follow
+the measurements only to round-off (UFIR-CMN at N = 2, ψ = 0: 1e-13 px), or within 0.1 % of the box scale (KF-CMN).
+Tracker boxes are integers, so OTB's success and precision thresholds are met with equality on some frames, and
+round-off flips those frames. Both parts are learned where the model was trained, never on the episodes it is scored
+on:
 
-1. The gain regressor maps the observation to the reward of the model's action minus the reward of the trust action
-   (the env's reward: log RMSE ratio, or success AUC / IoU precision difference). It is a ridge regression on
-   standardised features, its penalty chosen by leave-one-out (``RidgeCV``), fitted on train-split episodes with
-   their truth.
-2. The margin is chosen on val-split episodes: the one with the highest mean reward among 0, the quantiles of the
-   predicted gains there (opening the top 10, 25, 50, 75 or 90 % of val episodes) and ±∞. Ties go to the larger
+1. The gain regressor maps the observation to the reward of the model's action minus the reward of the raw
+   measurements (the env's reward kind: log RMSE ratio, or success AUC / IoU precision difference). It is a ridge
+   regression on standardised features, its penalty chosen by leave-one-out (``RidgeCV``), fitted on train-split
+   episodes with their truth.
+2. The margin is chosen on val-split episodes: the one with the highest mean gain over raw among 0, the quantiles of
+   the predicted gains there (opening the top 10, 25, 50, 75 or 90 % of val episodes) and ±∞. Ties go to the larger
    margin, which leaves more episodes alone. +∞ leaves every episode alone; −∞ is the model itself.
 
-Ridge rather than the MLPs of the other regressors: the gains are of order 1e-4 AUC and noisy. In a prototype fit
-(the pretrained ``otb_tracker_kf_cmn``, 1,000 train episodes of its 9 trackers, mean gain over the trust action
-+0.0005 AUC), a three-MLP ensemble gave the same val mean for every margin from 0 to 0.001: no prediction fell in
-that range, so it had fitted the noise. The ridge fit's predictions spread evenly over that range (in-sample
-correlation with the gains 0.50).
+Ridge rather than the MLPs of the other regressors: the gains are of order 1e-4 AUC and noisy. Prototype fits on
+train episodes of the pretrained ``otb_tracker_kf_cmn`` (mean gain +0.0005 AUC over KF-CMN's trust-the-measurement
+action) showed this. A three-MLP ensemble (300 episodes) gave the same val mean for every margin from 0 to 0.001,
+so none of its predictions fell in that range: it had fitted the noise. A ridge fit (1,000 episodes) spread its
+predictions across that range (in-sample correlation with the gains 0.50).
 """
 
 from __future__ import annotations
@@ -40,7 +43,8 @@ from agents.episodes import EpisodeBank
 from agents.evaluate import val_episodes
 from agents.runs import make_env
 from agents.splits import EpisodeSpec, train_seeds
-from envs.episodes.actions import trust_measurement_action
+from envs.episodes.episode import Episode
+from envs.episodes.scoring import reward_from, score_estimates
 
 GATED = "_gated"  # name suffix: ppo -> ppo_gated (ppo_s0 -> ppo_gated_s0)
 OPEN_SHARES = (0.1, 0.25, 0.5, 0.75, 0.9)  # shares of val episodes a quantile margin opens
@@ -55,28 +59,37 @@ def gated_name(name: str) -> str:
 
 @dataclass(frozen=True, eq=False)
 class GatedPolicy(ObsPolicy):
-    """Plays ``inner``'s action where ``gain`` predicts it beats ``fallback`` by more than ``margin`` (reward
-    units), and ``fallback`` elsewhere."""
+    """``inner``'s action where ``gain`` predicts it beats the raw measurements by more than ``margin`` (reward
+    units); the measurements left alone elsewhere (:meth:`leaves_alone`)."""
 
     inner: ObsPolicy
-    gain: Any  # fitted regressor: observations (n, F) -> predicted reward gain of inner's action over fallback (n,)
-    fallback: np.ndarray  # (d,) the trust-the-measurement action
-    margin: float  # reward units; inf: always the fallback, -inf: always inner
+    gain: Any  # fitted regressor: observations (n, F) -> predicted reward gain of inner's action over raw (n,)
+    margin: float  # reward units; inf: every episode left alone, -inf: always inner
     name: str = ""
 
     def opens(self, obs: np.ndarray) -> np.ndarray:
-        """Where ``inner``'s action is played, (n,) bool."""
+        """Where ``inner``'s action is used, (n,) bool."""
         return self.gain.predict(np.asarray(obs, dtype=np.float64)) > self.margin
 
     def predict(self, obs: np.ndarray) -> np.ndarray:
-        obs = np.asarray(obs)
-        return np.where(self.opens(obs)[:, None], self.inner.predict(obs), self.fallback[None])
+        """``inner``'s actions (n, d): what the filter is set to where the gate opens."""
+        return self.inner.predict(obs)
+
+    def leaves_alone(self, obs: np.ndarray) -> bool:
+        return not bool(self.opens(np.asarray(obs)[None])[0])
 
 
-def gain_labels(bank: EpisodeBank, inner: ObsPolicy, fallback: np.ndarray) -> np.ndarray:
-    """Per episode of ``bank``, the reward of ``inner``'s action minus that of ``fallback`` (n,)."""
+def gain_over_raw(scores: dict[str, np.ndarray], ep: Episode, kind: str) -> np.ndarray:
+    """The reward of ``kind`` of candidates' ``scores`` (each (A,)) measured against the raw measurements of ``ep``
+    instead of the env's reference (A,)."""
+    raw = score_estimates(ep.y[None], ep.truth)
+    return reward_from(scores, {k: float(v[0]) for k, v in raw.items()}, kind)
+
+
+def gain_labels(bank: EpisodeBank, inner: ObsPolicy) -> np.ndarray:
+    """Per episode of ``bank``, the gain over raw of ``inner``'s action (n,)."""
     actions = inner.predict(bank.observations)
-    return np.array([float(np.subtract(*bank.score(i, np.stack([a, fallback]))["reward"]))
+    return np.array([float(gain_over_raw(bank.score(i, a[None]), bank.items[i].episode, bank.reward_kind)[0])
                      for i, a in enumerate(actions)])
 
 
@@ -91,9 +104,7 @@ def fit_gain(obs: np.ndarray, gains: np.ndarray) -> Any:
 
 def fit_gate(bank: EpisodeBank, inner: ObsPolicy) -> GatedPolicy:
     """``inner`` gated by a gain regressor fitted on ``bank`` (train-split episodes), margin +∞ until chosen."""
-    fallback = trust_measurement_action(bank.backend, bank.action_map.tune)
-    gain = fit_gain(bank.observations, gain_labels(bank, inner, fallback))
-    return GatedPolicy(inner, gain, fallback, np.inf, gated_name(inner.name))
+    return GatedPolicy(inner, fit_gain(bank.observations, gain_labels(bank, inner)), np.inf, gated_name(inner.name))
 
 
 @dataclass(frozen=True)
@@ -101,27 +112,35 @@ class MarginChoice:
     """The chosen margin and what each candidate scored on the validation episodes."""
 
     margin: float
-    val_means: dict[float, float]  # margin -> mean reward on val
-    val_open: dict[float, float]  # margin -> share of val episodes where the model's action is played
+    val_means: dict[float, float]  # margin -> mean gain over raw on val (0 for +inf)
+    val_open: dict[float, float]  # margin -> share of val episodes where the model's action is used
+
+
+def pick_margin(predicted: np.ndarray, gains: np.ndarray) -> MarginChoice:
+    """The margin (module docstring) for val episodes' ``predicted`` gains and true ``gains`` over raw (n,), where a
+    non-finite true gain counts as a loss (the model's estimate is not usable there)."""
+    if len(predicted) == 0 or len(predicted) != len(gains):
+        raise ValueError(f"{len(predicted)} predictions and {len(gains)} gains; the gate's margin needs >= 1 of each, "
+                         "as many")
+    gains = np.where(np.isfinite(gains), gains, -np.inf)
+    margins = sorted({-np.inf, 0.0, np.inf, *(float(np.quantile(predicted, 1.0 - q)) for q in OPEN_SHARES)})
+    means = {m: float(np.mean(np.where(predicted > m, gains, 0.0))) for m in margins}
+    share = {m: float(np.mean(predicted > m)) for m in margins}
+    return MarginChoice(max(margins, key=lambda m: (means[m], m)), means, share)
 
 
 def choose_margin(gated: GatedPolicy, env: gym.Env, episodes: Sequence[EpisodeSpec]) -> MarginChoice:
-    """The margin of ``gated`` with the highest mean reward on the validation ``episodes`` of ``env`` (a val-split
-    FilterTune-v0 env); candidates and ties as in the module docstring."""
+    """:func:`pick_margin` on the validation ``episodes`` of ``env`` (a val-split FilterTune-v0 env)."""
     if not episodes:
         raise ValueError("no validation episodes to choose the gate's margin on")
     base = env.unwrapped
-    preds, rewards = [], []
+    predicted, gains = [], []
     for spec in episodes:
-        obs, _ = env.reset(options=spec.options())
-        preds.append(float(gated.gain.predict(np.asarray(obs, np.float64)[None])[0]))
-        rewards.append(base.score(np.stack([gated.inner.predict(np.asarray(obs)[None])[0], gated.fallback]))["reward"])
-    g, r = np.array(preds), np.array(rewards)  # (n,), (n, 2): model, fallback
-    margins = sorted({-np.inf, 0.0, np.inf, *(float(np.quantile(g, 1.0 - q)) for q in OPEN_SHARES)})
-    means = {m: float(np.mean(np.where(g > m, r[:, 0], r[:, 1]))) for m in margins}
-    share = {m: float(np.mean(g > m)) for m in margins}
-    best = max(margins, key=lambda m: (means[m] if np.isfinite(means[m]) else -np.inf, m))
-    return MarginChoice(best, means, share)
+        obs = np.asarray(env.reset(options=spec.options())[0])
+        predicted.append(float(gated.gain.predict(obs[None].astype(np.float64))[0]))
+        scores = base.score(gated.inner.predict(obs[None]))
+        gains.append(float(gain_over_raw(scores, base.episode, base.config.reward)[0]))
+    return pick_margin(np.array(predicted), np.array(gains))
 
 
 def with_margin(gated: GatedPolicy, margin: float) -> GatedPolicy:
@@ -130,9 +149,9 @@ def with_margin(gated: GatedPolicy, margin: float) -> GatedPolicy:
 
 
 def describe_choice(name: str, choice: MarginChoice) -> str:
-    """One summary line: the chosen margin and each candidate's val mean and open share."""
+    """One summary line: the chosen margin and each candidate's val mean gain over raw and open share."""
     each = ", ".join(f"{m:+.3g}: {choice.val_means[m]:+.5f} ({choice.val_open[m]:.0%} open)" for m in choice.val_means)
-    return f"{name} margin {choice.margin:+.3g} (val mean reward per margin: {each})"
+    return f"{name} margin {choice.margin:+.3g} (val mean gain over raw per margin: {each})"
 
 
 def fit_gates(models: Sequence[ObsPolicy], env_id: str, env_kwargs: dict[str, Any], *, train_episodes: int,

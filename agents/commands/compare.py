@@ -23,8 +23,8 @@ rule_est_sigma, rule_true_sigma (sim only), oracle (per-episode search maximisin
 truth), oracle_auc (maximising success AUC; oracle_rmse, minimising RMSE, when the reward is not RMSE), global,
 amortised, adaptive, the trained model (named by its algorithm, e.g. ppo) and its best-on-validation checkpoint
 (<algo>_best); with --gate also each final model gated (<algo>_gated, agents.gate: its action where a ridge
-regressor predicts that it beats the trust-the-measurement action by more than a margin chosen on val episodes, that
-action elsewhere). All methods see the same episodes (common random numbers); global and amortised are fitted on
+regressor predicts that it beats the raw measurements by more than a margin chosen on val episodes; elsewhere the
+measurements left alone, scored as raw). All methods see the same episodes (common random numbers); global and amortised are fitted on
 train-split episodes of the evaluation env, the gates on train- and val-split episodes of the run's own env (so a
 transfer evaluation stays one).
 
@@ -147,8 +147,8 @@ def build_parser() -> ArgumentParser:
                         "gain a switch away from the one-shot action must exceed), instead of choosing it on val episodes")
     p.add_argument("--gate", action="store_true",
                    help=f"{ONE_STEP_ENV} runs: also score each final model gated as <algo>{GATED}[_s<seed>] (agents.gate: "
-                        "its action where a regressor predicts it beats no smoothing by more than a margin, else the "
-                        "trust-the-measurement action; fitted on --train-episodes train and chosen on --val-episodes val "
+                        "its action where a regressor predicts it beats the raw measurements by more than a margin, else "
+                        "the measurements left alone; fitted on --train-episodes train and chosen on --val-episodes val "
                         "episodes of the run's own env)")
     p.add_argument("--trust-pickle", action="store_true",
                    help="accept an old run's pickled vecnormalize.pkl (pickles can run code: only for runs you trust)")

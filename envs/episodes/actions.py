@@ -53,18 +53,6 @@ DEFAULT_TUNE: dict[str, tuple[str, ...]] = {
 }
 
 _TOLERANCE = 1e-6
-# "Trust the measurement" (no smoothing): each parameter's end of [-1, 1] where the estimate follows the measurement
-_TRUST: dict[str, float] = {"psi": -1.0, "horizon": -1.0, "sigma_w": 1.0, "sigma_v": -1.0}
-
-
-def trust_measurement_action(backend: str, tune: Sequence[str]) -> np.ndarray:
-    """The action (d,) for ``tune`` whose estimates follow the measurements (no smoothing): N = 2 (-1), σ_w at the
-    top (+1), σ_v at the bottom (-1), ψ = 0 (-1), except ψ = ψ_max (+1) for ``kf_cmn``, whose coloured-noise model
-    then follows each measurement. How close each back end comes: ``envs.tune_env.FilterTuneEnv`` (Action Space)."""
-    unknown = [p for p in tune if p not in _TRUST]
-    if unknown:
-        raise ValueError(f"tune={tuple(tune)!r}: allowed names from {TUNABLE}")
-    return np.array([1.0 if (name, backend) == ("psi", "kf_cmn") else _TRUST[name] for name in tune])
 
 
 K_AXIS = 2  # state size of one coordinate's constant-velocity model (the smallest horizon)

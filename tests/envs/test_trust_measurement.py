@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 import filters
-from envs.episodes.actions import trust_measurement_action
 from envs.episodes.features import box_scale
 
 TOLERANCE = 1e-3  # max |estimate − y| / box scale over a track (0.05 px on a 50 px box)
 EXACT = 1e-10  # float round-off only
+TRUST = {"psi": -1.0, "horizon": -1.0, "sigma_w": 1.0, "sigma_v": -1.0}
 # back end -> (env arguments beyond the defaults, tolerance)
 CASES: dict[str, tuple[dict, float]] = {
     "ufir": ({}, EXACT),
@@ -31,6 +31,10 @@ CASES: dict[str, tuple[dict, float]] = {
     "ukf": ({"sigma_decades": 2.5}, TOLERANCE),
     "ofir": ({"tune": ("horizon", "sigma_w", "sigma_v"), "sigma_decades": 2.5}, TOLERANCE),
 }
+
+
+def trust_action(backend: str, tune: tuple[str, ...]) -> np.ndarray:
+    return np.array([1.0 if (name, backend) == ("psi", "kf_cmn") else TRUST[name] for name in tune], np.float32)
 
 
 def test_every_back_end_has_a_case() -> None:
@@ -46,7 +50,7 @@ def test_an_action_trusts_the_measurement(backend: str) -> None:
     for scenario in ({}, {"tau_range": (1 / 30, 1 / 30)}):
         env = gym.make("bboxtune/FilterTune-v0", backend=backend, track_length=300, **scenario, **kwargs)
         u = env.unwrapped
-        action = trust_measurement_action(backend, u.config.tune).astype(np.float32)
+        action = trust_action(backend, u.config.tune)
         for seed in range(6):
             env.reset(options={"noise_seed": seed})  # one episode prepared, not a block
             ep = u.episode
@@ -56,10 +60,3 @@ def test_an_action_trusts_the_measurement(backend: str) -> None:
             rule_gap = min(rule_gap, float(deviation[1].max()))
     assert worst <= tolerance
     assert rule_gap > 10 * tolerance  # the rule smooths (4 % of the box scale or more): the check tells them apart
-
-
-def test_the_action_per_parameter_and_bad_names() -> None:
-    assert trust_measurement_action("kf_cmn", ("psi", "sigma_w", "sigma_v")).tolist() == [1.0, 1.0, -1.0]
-    assert trust_measurement_action("ufir_cmn", ("psi", "horizon")).tolist() == [-1.0, -1.0]
-    with pytest.raises(ValueError, match="allowed names from"):
-        trust_measurement_action("kf", ("sigma_w", "gain"))
