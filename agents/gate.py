@@ -19,6 +19,9 @@ on:
    the predicted gains there (opening the top 10, 25, 50, 75 or 90 % of val episodes) and ±∞. Ties go to the larger
    margin, which leaves more episodes alone. +∞ leaves every episode alone; −∞ is the model itself.
 
+A fitted gate is plain numbers (:mod:`agents.gate_file`): ``compare.py --gate`` writes each to ``gates/<name>.json``,
+and ``smooth.py`` / :class:`agents.tune.Tuner` apply one (``--gate FILE``, or ``gate.json`` in the tuner's folder).
+
 Ridge rather than the MLPs of the other regressors: the gains are of order 1e-4 AUC and noisy. Prototype fits on
 train episodes of the pretrained ``otb_tracker_kf_cmn`` (mean gain +0.0005 AUC over KF-CMN's trust-the-measurement
 action) showed this. A three-MLP ensemble (300 episodes) gave the same val mean for every margin from 0 to 0.001,
@@ -41,6 +44,7 @@ from sklearn.preprocessing import StandardScaler
 from agents.baselines import ObsPolicy
 from agents.episodes import EpisodeBank
 from agents.evaluate import val_episodes
+from agents.gate_file import Gate, LinearGain
 from agents.runs import make_env
 from agents.splits import EpisodeSpec, train_seeds
 from envs.episodes.episode import Episode
@@ -63,13 +67,18 @@ class GatedPolicy(ObsPolicy):
     units); the measurements left alone elsewhere (:meth:`leaves_alone`)."""
 
     inner: ObsPolicy
-    gain: Any  # fitted regressor: observations (n, F) -> predicted reward gain of inner's action over raw (n,)
+    gain: LinearGain  # predicted reward gain of inner's action over raw
     margin: float  # reward units; inf: every episode left alone, -inf: always inner
     name: str = ""
 
+    @property
+    def gate(self) -> Gate:
+        """The gain predictor and margin, as ``agents.gate_file`` saves them."""
+        return Gate(self.gain, self.margin)
+
     def opens(self, obs: np.ndarray) -> np.ndarray:
         """Where ``inner``'s action is used, (n,) bool."""
-        return self.gain.predict(np.asarray(obs, dtype=np.float64)) > self.margin
+        return self.gate.opens(obs)
 
     def predict(self, obs: np.ndarray) -> np.ndarray:
         """``inner``'s actions (n, d): what the filter is set to where the gate opens."""
@@ -93,13 +102,16 @@ def gain_labels(bank: EpisodeBank, inner: ObsPolicy) -> np.ndarray:
                      for i, a in enumerate(actions)])
 
 
-def fit_gain(obs: np.ndarray, gains: np.ndarray) -> Any:
+def fit_gain(obs: np.ndarray, gains: np.ndarray) -> LinearGain:
     """Ridge regression (penalty by leave-one-out over ``RIDGE_ALPHAS``) of ``gains`` (n,) on standardised ``obs``
     (n, F); episodes with a non-finite gain are left out (ValueError if fewer than 2 remain)."""
     keep = np.isfinite(gains)
     if keep.sum() < 2:
         raise ValueError(f"{keep.sum()} of {len(gains)} training episodes have a finite gain; the gate needs >= 2")
-    return make_pipeline(StandardScaler(), RidgeCV(alphas=RIDGE_ALPHAS)).fit(np.asarray(obs, np.float64)[keep], gains[keep])
+    fit = make_pipeline(StandardScaler(), RidgeCV(alphas=RIDGE_ALPHAS)).fit(np.asarray(obs, np.float64)[keep], gains[keep])
+    scaler, ridge = fit.steps[0][1], fit.steps[1][1]
+    return LinearGain(mean=scaler.mean_.copy(), scale=scaler.scale_.copy(), coef=np.asarray(ridge.coef_, np.float64).copy(),
+                      intercept=float(ridge.intercept_))
 
 
 def fit_gate(bank: EpisodeBank, inner: ObsPolicy) -> GatedPolicy:

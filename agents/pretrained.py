@@ -7,6 +7,7 @@ Each tuner is a folder ``agents/pretrained/<name>/`` holding the files of a ``sc
     vecnormalize.json   its observation statistics (agents.run_files)
     config.yml          the run's config: env id and env kwargs (source, back end), algorithm, hyperparameters
     summary.md          the compare.py summary it reached (test split of its env)
+    gate.json           optional: its learned gate (agents.gate_file; compare.py --gate), applied when it is loaded
 
 Names are the folders found there (``<source>_<backend>``, e.g. ``sim_ufir_cmn``; ``otb_tracker_<backend>`` for
 tracker output); a folder is added by copying a run's ``model.zip``, ``vecnormalize.json`` and ``config.yml``
@@ -19,6 +20,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent / "pretrained"
 FILES = ("model.zip", "vecnormalize.json", "config.yml", "summary.md")
+OPTIONAL = ("gate.json",)
 
 
 def available() -> tuple[str, ...]:

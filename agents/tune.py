@@ -3,7 +3,7 @@ smoothed with them.
 
     import agents
     params = agents.tune(boxes, tau=1 / 30)      # e.g. {"psi": 0.42, "horizon": 7}: the default pretrained tuner
-    smoothed = agents.smooth(boxes, tau=1 / 30)  # (T, 4) xywh, the same track filtered with those parameters
+    smoothed = agents.smooth(boxes, tau=1 / 30)  # (T, 4) xywh: filtered with them, or as given where the gate leaves it
 
     from agents.tune import Tuner                # a scripts/train.py run, loaded once for many tracks
     tuner = Tuner.from_run("runs/ppo_ufir_cmn_sim_s0")
@@ -28,6 +28,11 @@ the env's reset observation on the same measurements (tested), and the parameter
 applies for the policy's action. Smoothed boxes are the back end's position estimates; frames before the
 first measured one have no estimate (NaN rows), later missing frames are predicted.
 
+A gated tuner (:mod:`agents.gate`: a ``gate.json`` in the tuner's folder, read when it is loaded, or
+``Tuner.with_gate(FILE)`` for a file that ``compare.py --gate`` wrote) leaves a track alone where its gate stays
+closed (:meth:`Tuner.leaves_alone`): :meth:`Tuner.smooth` then returns the boxes as given, missing frames included.
+:meth:`Tuner.tune` still returns the parameters the model would set.
+
 ``import agents`` imports this module (for ``agents.tune`` / ``agents.smooth``); stable-baselines3 and torch are
 imported when a tuner is first loaded, so that every ``agents.*`` import (e.g. the scripts' ``agents.cli``) stays
 light.
@@ -36,7 +41,7 @@ light.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -46,6 +51,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from agents import pretrained
+from agents.gate_file import GATE_FILE, Gate, read_gate
 from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from envs.episodes.actions import ACCEPTS, ActionMap, Nominal
 from envs.episodes.config import EnvConfig, check_real
@@ -153,6 +159,7 @@ class Tuner:
     policy: SB3Policy
     config: EnvConfig  # the env it was trained on (source, back end, action settings)
     action_map: ActionMap
+    gate: Gate | None = None  # where it stays closed the track is left alone (agents.gate_file)
 
     @classmethod
     def from_run(cls, run_dir: str | os.PathLike, name: str | None = None) -> Tuner:
@@ -170,7 +177,16 @@ class Tuner:
         env = venv.envs[0].unwrapped
         config = EnvConfig.from_kwargs(**cfg["env_kwargs"])  # constructing a config reads no data
         policy = SB3Policy.load(run_dir, "final", venv=venv)
-        return cls(name=name or str(run_dir), policy=policy, config=config, action_map=env.action_map)
+        tuner = cls(name=name or str(run_dir), policy=policy, config=config, action_map=env.action_map)
+        return tuner.with_gate(run_dir / GATE_FILE) if (run_dir / GATE_FILE).exists() else tuner
+
+    def with_gate(self, path: str | os.PathLike) -> Tuner:
+        """This tuner gated by the gate file ``path`` (:mod:`agents.gate_file`; ValueError naming the file)."""
+        return replace(self, gate=read_gate(path, self.policy.model.observation_space.shape[0]))
+
+    def leaves_alone(self, seen: Observation) -> bool:
+        """Whether the gate (if any) leaves this track as measured."""
+        return self.gate is not None and not bool(self.gate.opens(seen.obs[None])[0])
 
     @property
     def backend(self) -> str:
@@ -200,7 +216,10 @@ class Tuner:
 
     def smooth(self, boxes: ArrayLike, tau: Any, params: dict[str, float | int] | None = None) -> np.ndarray:
         """The track filtered by the back end with ``params`` (default: :meth:`tune`'s), (T, 4) xywh px; NaN rows
-        where there is no estimate (before the first measured frame)."""
+        where there is no estimate (before the first measured frame). Without ``params``, a track the gate leaves
+        alone is returned as given."""
+        if params is None and self.leaves_alone(self.observe(boxes, tau)):
+            return check_boxes(boxes).copy()
         params = self.tune(boxes, tau) if params is None else params
         if set(params) != set(ACCEPTS[self.backend]):
             raise ValueError(f"params has keys {sorted(params)}; back end {self.backend} takes {ACCEPTS[self.backend]}")

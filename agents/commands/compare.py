@@ -24,7 +24,8 @@ truth), oracle_auc (maximising success AUC; oracle_rmse, minimising RMSE, when t
 amortised, adaptive, the trained model (named by its algorithm, e.g. ppo) and its best-on-validation checkpoint
 (<algo>_best); with --gate also each final model gated (<algo>_gated, agents.gate: its action where a ridge
 regressor predicts that it beats the raw measurements by more than a margin chosen on val episodes; elsewhere the
-measurements left alone, scored as raw). All methods see the same episodes (common random numbers); global and amortised are fitted on
+measurements left alone, scored as raw; each fitted gate is written to gates/<name>.json, for smooth.py --gate). All
+methods see the same episodes (common random numbers); global and amortised are fitted on
 train-split episodes of the evaluation env, the gates on train- and val-split episodes of the run's own env (so a
 transfer evaluation stays one).
 
@@ -82,6 +83,7 @@ from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, float_range
 from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,
                              standard_policies)
 from agents.gate import GATED, fit_gates
+from agents.gate_file import write_gate
 from agents.plots import gain_boxplot, otb_curves, performance_profile, trajectories
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.commands.compare_retune import ONE_STEP_ENV, RETUNE_ENV, compare_retune, load_oneshot
@@ -98,6 +100,7 @@ ENVS = (ONE_STEP_ENV, RETUNE_ENV)
 MIN_TRAIN_EPISODES = 11  # AmortisedPolicy's MLP holds out ceil(10 %) for early stopping and needs >= 2 of them
 DEFAULT_EPISODES = 500  # sim / video
 DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episodes
+GATES = "gates"  # --gate: the fitted gates, <name>.json (agents.gate_file), for smooth.py --gate
 DEFAULT_VAL_EPISODES = 100  # sim / video val episodes the margins of window_anchored/_residual (--oneshot-model) and the gates (--gate) are chosen on
 
 
@@ -364,6 +367,10 @@ def run(argv: list[str] | None = None) -> Path:
         head, figures = summary.split("## Figures")
         summary = head + seeds_section(result.rows, groups, n_boot=args.bootstrap, seed=args.seed,
                                        reference=("raw", "rule", "oracle")) + "\n## Figures" + figures
+    if gated:
+        (out / GATES).mkdir(exist_ok=True)
+        for policy in gated:
+            write_gate(out / GATES / f"{policy.name}.json", policy.gate, about=f"{policy.name}: {gate_line.split(';')[0]}")
     write_text_atomic(out / "summary.md", summary)
     print(summary.split("## Paired")[0])
     print(f"wrote {out}")

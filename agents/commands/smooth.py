@@ -8,21 +8,25 @@ tracker's boxes alone (never the ground truth).
 --results holds one <Sequence>.txt per sequence (x,y,w,h per line, 1-based OTB pixels; 0,0,0,0 = no box), read
 by the OTB readers (a malformed file stops the run with file:line, exit status 2, nothing written). Tuner:
 --model RUN_DIR (a scripts/train.py run of bboxtune/FilterTune-v0) or --pretrained NAME (agents/pretrained);
-neither: the pretrained tracker-output tuner otb_tracker_kf_cmn. --tau: the frame interval in s (default:
-the tuner's otb_tau, 1/30 s). Every sequence must have at least 8 frames, 2 of them with a box.
+neither: the pretrained tracker-output tuner otb_tracker_kf_cmn (gated: its gate leaves every sequence as
+read; --no-gate smooths them). --tau: the frame interval in s (default: the tuner's otb_tau, 1/30 s). Every
+sequence must have at least 8 frames, 2 of them with a box.
 
 --out (absent or empty; it appears complete or not at all) receives one <Sequence>.txt per input file, same
 name, x,y,w,h with 3 decimals per line, one line per input line: the back end's smoothed boxes. Frames
 without a box in the input are predicted from the others; frames before the first box, and any frame whose
-smoothed w or h is <= 0, are written 0,0,0,0 (counted in params.csv). params.csv: sequence, n_frames,
-n_missing_in, n_missing_out and the chosen parameters (e.g. psi, horizon; exact values). With --otb-root the
-sequences found there are scored, raw and smoothed, by scripts/otb_eval.py's scorer (success AUC, precision at
+smoothed w or h is <= 0, are written 0,0,0,0 (counted in params.csv). A gated tuner (--gate FILE, a gate that
+compare.py --gate fitted for this tuner, or a gate.json in the tuner's folder unless --no-gate; agents.gate) writes
+a sequence where its gate stays closed as read instead. params.csv: sequence, n_frames, n_missing_in,
+n_missing_out, left_alone (1: written as read) and the chosen parameters (e.g. psi, horizon; exact values; what the
+model sets, also where the sequence is left alone). With --otb-root the sequences found there are scored, raw and smoothed, by scripts/otb_eval.py's scorer (success AUC, precision at
 20 px, mean over sequences; printed and written to scores.csv).
 """
 
 from __future__ import annotations
 
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +34,8 @@ import torch
 from tqdm import tqdm
 
 from agents import pretrained
-from agents.cli import ArgumentParser, HelpFormatter, argument_errors, existing_dir, float_range, out_dir
+from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, existing_dir, existing_file, float_range,
+                        out_dir)
 from agents.commands.otb_eval import evaluate
 from agents.tune import DEFAULT_PRETRAINED, TAU_RANGE, Tuner, check_boxes, load_pretrained
 from agents.video_tables import csv_text, folder_in_use, publish_folder
@@ -54,6 +59,12 @@ def build_parser() -> ArgumentParser:
                    help="OTB data (any layout of otb_eval.py): score raw and smoothed results")
     p.add_argument("--tau", type=float_range(*TAU_RANGE), default=None, metavar="S",
                    help="frame interval in s (default: the tuner's otb_tau)")
+    gating = p.add_mutually_exclusive_group()
+    gating.add_argument("--gate", type=existing_file, default=None, metavar="FILE",
+                        help="a gate file of compare.py --gate (gates/<name>.json, fitted for this tuner): sequences "
+                             "where it stays closed are written as read (default: the tuner folder's gate.json, if any)")
+    gating.add_argument("--no-gate", action="store_true",
+                        help="ignore the tuner folder's gate.json: smooth every sequence")
     return p
 
 
@@ -104,6 +115,11 @@ def main(argv: list[str] | None = None) -> int:
         results = read_results(args.results)
     with argument_errors(parser, "--model" if args.model else "--pretrained"):
         tuner = Tuner.from_run(args.model) if args.model else load_pretrained(args.pretrained or DEFAULT_PRETRAINED)
+    if args.gate is not None:
+        with argument_errors(parser, "--gate"):
+            tuner = tuner.with_gate(args.gate)
+    if args.no_gate:
+        tuner = replace(tuner, gate=None)
     tau = args.tau if args.tau is not None else tuner.config.otb_tau
     raw = None
     if args.otb_root is not None:
@@ -112,12 +128,16 @@ def main(argv: list[str] | None = None) -> int:
     files, rows = {}, []
     for name, (path, boxes) in tqdm(results.items(), desc=f"smooth ({tuner.name})", unit="seq"):
         params = tuner.tune(boxes, tau)
-        files[name], n_missing_out = box_text(tuner.smooth(boxes, tau, params))
+        alone = tuner.leaves_alone(tuner.observe(boxes, tau))
+        files[name], n_missing_out = box_text(boxes if alone else tuner.smooth(boxes, tau, params))
         n_missing_in = int(np.isnan(boxes).all(axis=1).sum())
-        rows.append([path.stem, len(boxes), n_missing_in, n_missing_out, *(str(v) for v in params.values())])  # exact
-    files["params.csv"] = csv_text(["sequence", "n_frames", "n_missing_in", "n_missing_out", *ACCEPTS[tuner.backend]],
-                                   rows)
-    print(f"smoothed {len(results)} sequences with {tuner.name} ({tuner.backend}, tau {tau:.4g} s)")
+        rows.append([path.stem, len(boxes), n_missing_in, n_missing_out, int(alone),
+                     *(str(v) for v in params.values())])  # exact
+    files["params.csv"] = csv_text(["sequence", "n_frames", "n_missing_in", "n_missing_out", "left_alone",
+                                    *ACCEPTS[tuner.backend]], rows)
+    left = sum(row[4] for row in rows)
+    print(f"smoothed {len(results) - left} of {len(results)} sequences with {tuner.name} ({tuner.backend}, tau {tau:.4g} s)"
+          + (f"; the gate left {left} as read" if tuner.gate is not None else ""))
     if raw is not None:
         with argument_errors(parser, "--otb-root"):
             smoothed = score_smoothed(args.otb_root, files)

@@ -12,7 +12,8 @@ import pytest
 
 from agents import pretrained
 from agents.commands import otb_eval, smooth as smooth_script
-from agents.tune import load_pretrained
+from agents.gate_file import GATE_FILE, Gate, LinearGain, write_gate
+from agents.tune import Tuner, load_pretrained
 from envs.data.otb import OTBDataset
 from envs.data.otb_io import read_boxes
 
@@ -67,7 +68,7 @@ def test_smoothed_files_hold_the_tuners_estimates(tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir()) == ["Alpha.txt", "Gamma.txt", "beta_1.txt", "params.csv"]
     tuner = load_pretrained("sim_ufir_cmn")
     table = {row.split(",")[0]: row.split(",") for row in (out / "params.csv").read_text().splitlines()}
-    assert table.pop("sequence") == ["sequence", "n_frames", "n_missing_in", "n_missing_out", "psi", "horizon"]
+    assert table.pop("sequence") == ["sequence", "n_frames", "n_missing_in", "n_missing_out", "left_alone", "psi", "horizon"]
     for name, boxes in raw.items():
         params = tuner.tune(boxes, float(TAU))
         expected = tuner.smooth(boxes, float(TAU), params)
@@ -77,12 +78,51 @@ def test_smoothed_files_hold_the_tuners_estimates(tmp_path, capsys):
         np.testing.assert_allclose(written, expected, atol=5.1e-4)  # 3 decimals; NaN rows where no estimate
         row = table[Path(name).stem]
         n_in = int(np.isnan(boxes).any(axis=1).sum())
-        assert row[1:4] == [str(len(boxes)), str(n_in), str(int(np.isnan(expected).any(axis=1).sum()))]
-        assert float(row[4]) == params["psi"] and int(row[5]) == params["horizon"]
+        assert row[1:5] == [str(len(boxes)), str(n_in), str(int(np.isnan(expected).any(axis=1).sum())), "0"]
+        assert float(row[5]) == params["psi"] and int(row[6]) == params["horizon"]
     gamma = read_boxes(out / "Gamma.txt")
     assert np.isnan(gamma[:2]).all() and np.isfinite(gamma[2:]).all()  # the gap is predicted, the start is not
     assert table["Gamma"][2:4] == ["6", "2"]
-    assert "smoothed 3 sequences with sim_ufir_cmn" in capsys.readouterr().out
+    assert "smoothed 3 of 3 sequences with sim_ufir_cmn" in capsys.readouterr().out
+
+
+def write_gate_file(path: Path, margin: float) -> Path:
+    """A gate for a 20-feature tuner whose prediction is 0 everywhere, with ``margin``."""
+    zeros = LinearGain(np.zeros(20), np.ones(20), np.zeros(20), 0.0)
+    write_gate(path, Gate(zeros, margin), about="test")
+    return path
+
+
+def test_a_gate_writes_the_sequences_it_leaves_alone_as_read(tmp_path, capsys):
+    """--gate FILE (or a gate.json in the tuner's folder): where the gate stays closed the sequence is written as read
+    (left_alone 1), where it opens exactly as without a gate."""
+    raw = write_results(tmp_path / "SiamX")
+    common = ("--results", tmp_path / "SiamX", "--pretrained", "sim_ufir_cmn", "--tau", TAU)
+    assert run(*common, "--out", tmp_path / "plain") == 0
+    assert run(*common, "--out", tmp_path / "open", "--gate", write_gate_file(tmp_path / "open.json", -np.inf)) == 0
+    for name in ("Alpha.txt", "beta_1.txt", "Gamma.txt"):
+        assert (tmp_path / "open" / name).read_text() == (tmp_path / "plain" / name).read_text()
+    assert run(*common, "--out", tmp_path / "alone", "--gate", write_gate_file(tmp_path / "closed.json", 0.0)) == 0
+    assert "smoothed 0 of 3 sequences with sim_ufir_cmn (ufir_cmn, tau 0.04 s); the gate left 3 as read" in \
+        capsys.readouterr().out
+    table = [row.split(",") for row in (tmp_path / "alone" / "params.csv").read_text().splitlines()[1:]]
+    assert [row[4] for row in table] == ["1", "1", "1"]
+    for name, boxes in raw.items():
+        np.testing.assert_array_equal(read_boxes(tmp_path / "alone" / name), boxes)  # missing frames stay missing
+    folder = tmp_path / "gated_tuner"
+    shutil.copytree(REPO / "agents/pretrained/sim_ufir_cmn", folder)
+    write_gate_file(folder / GATE_FILE, np.inf)
+    tuner = Tuner.from_run(folder)
+    boxes = raw["Gamma.txt"]
+    assert tuner.gate is not None and tuner.leaves_alone(tuner.observe(boxes, 0.04))
+    np.testing.assert_array_equal(tuner.smooth(boxes, 0.04), boxes)
+    assert tuner.tune(boxes, 0.04) == load_pretrained("sim_ufir_cmn").tune(boxes, 0.04)  # the model's parameters
+    assert run("--results", tmp_path / "SiamX", "--model", folder, "--tau", TAU, "--out", tmp_path / "folder_gate") == 0
+    assert run("--results", tmp_path / "SiamX", "--model", folder, "--tau", TAU, "--out", tmp_path / "no_gate",
+               "--no-gate") == 0
+    for name in ("Alpha.txt", "beta_1.txt", "Gamma.txt"):
+        assert (tmp_path / "folder_gate" / name).read_text() == (tmp_path / "alone" / name).read_text()
+        assert (tmp_path / "no_gate" / name).read_text() == (tmp_path / "plain" / name).read_text()
 
 
 def test_default_tuner_is_the_tracker_output_one(tmp_path, monkeypatch, capsys):
@@ -164,6 +204,11 @@ CASES = [
     misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--otb-root", "{dir}"),
     misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--otb-root", "{bad_json}", mentions="{bad_json}:2"),
     misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--unknown"),
+    misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{missing}", mentions="--gate"),
+    misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{dir}", mentions="--gate"),
+    misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{file}", mentions="not a readable gate file"),
+    misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{bad_json}", mentions="{bad_json}"),
+    misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{bad_json}", "--no-gate", mentions="--no-gate"),
     misuse("--res", "{results}", "--out", "{out}", mentions="--res"),  # flags are not abbreviated
 ]
 
