@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -31,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NoReturn
 
+import numpy as np
 import yaml
 
 from envs.data import textfile
@@ -179,6 +181,25 @@ def read_json(path: Path) -> Any:
         raise ValueError(f"{path}: invalid JSON: {exc}") from None
     except RecursionError:
         raise ValueError(f"{path}: invalid JSON: nested too deeply") from None
+
+
+def json_number(doc: Any, key: str, path: Path | str, low: float = -math.inf, error: type[ValueError] = ValueError) -> float:
+    """``doc[key]`` of a parsed JSON object as a finite number >= ``low`` (not a bool); ``error`` naming ``path``."""
+    value = doc.get(key) if isinstance(doc, dict) else None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < low:
+        raise error(f"{path}: {key}={value!r}; expected a finite number >= {low:g}")
+    return float(value)
+
+
+def json_vector(doc: Any, key: str, size: int, path: Path | str, low: float = -math.inf, what: str = "",
+                error: type[ValueError] = ValueError) -> np.ndarray:
+    """``doc[key]`` of a parsed JSON object as ``size`` finite numbers >= ``low`` (float64); ``error`` naming ``path``
+    (and ``what`` the size is)."""
+    values = doc.get(key) if isinstance(doc, dict) else None
+    if not isinstance(values, list) or len(values) != size or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= low for v in values):
+        raise error(f"{path}: {key} must be a list of {size} finite numbers >= {low:g}{f' ({what})' if what else ''}")
+    return np.array(values, dtype=np.float64)
 
 
 def read_yaml(path: Path) -> Any:

@@ -63,18 +63,12 @@ def gated_name(name: str) -> str:
 
 @dataclass(frozen=True, eq=False)
 class GatedPolicy(ObsPolicy):
-    """``inner``'s action where ``gain`` predicts it beats the raw measurements by more than ``margin`` (reward
-    units); the measurements left alone elsewhere (:meth:`leaves_alone`)."""
+    """``inner``'s action where ``gate`` opens (its predicted gain over the raw measurements, in reward units, above
+    its margin); the measurements left alone elsewhere (:meth:`leaves_alone`)."""
 
     inner: ObsPolicy
-    gain: LinearGain  # predicted reward gain of inner's action over raw
-    margin: float  # reward units; inf: every episode left alone, -inf: always inner
+    gate: Gate  # margin inf: every episode left alone, -inf: always inner
     name: str = ""
-
-    @property
-    def gate(self) -> Gate:
-        """The gain predictor and margin, as ``agents.gate_file`` saves them."""
-        return Gate(self.gain, self.margin)
 
     def opens(self, obs: np.ndarray) -> np.ndarray:
         """Where ``inner``'s action is used, (n,) bool."""
@@ -116,7 +110,8 @@ def fit_gain(obs: np.ndarray, gains: np.ndarray) -> LinearGain:
 
 def fit_gate(bank: EpisodeBank, inner: ObsPolicy) -> GatedPolicy:
     """``inner`` gated by a gain regressor fitted on ``bank`` (train-split episodes), margin +∞ until chosen."""
-    return GatedPolicy(inner, fit_gain(bank.observations, gain_labels(bank, inner)), np.inf, gated_name(inner.name))
+    gain = fit_gain(bank.observations, gain_labels(bank, inner))
+    return GatedPolicy(inner, Gate(gain, np.inf), gated_name(inner.name))
 
 
 @dataclass(frozen=True)
@@ -149,7 +144,7 @@ def choose_margin(gated: GatedPolicy, env: gym.Env, episodes: Sequence[EpisodeSp
     predicted, gains = [], []
     for spec in episodes:
         obs = np.asarray(env.reset(options=spec.options())[0])
-        predicted.append(float(gated.gain.predict(obs[None].astype(np.float64))[0]))
+        predicted.append(float(gated.gate.gain.predict(obs[None])[0]))
         scores = base.score(gated.inner.predict(obs[None]))
         gains.append(float(gain_over_raw(scores, base.episode, base.config.reward)[0]))
     return pick_margin(np.array(predicted), np.array(gains))
@@ -157,7 +152,7 @@ def choose_margin(gated: GatedPolicy, env: gym.Env, episodes: Sequence[EpisodeSp
 
 def with_margin(gated: GatedPolicy, margin: float) -> GatedPolicy:
     """``gated`` with another margin."""
-    return replace(gated, margin=float(margin))
+    return replace(gated, gate=Gate(gated.gate.gain, float(margin)))
 
 
 def describe_choice(name: str, choice: MarginChoice) -> str:
@@ -167,11 +162,12 @@ def describe_choice(name: str, choice: MarginChoice) -> str:
 
 
 def fit_gates(models: Sequence[ObsPolicy], env_id: str, env_kwargs: dict[str, Any], *, train_episodes: int,
-              n_val: int, seeds_per_sequence: int = 1, seed: int = 0) -> tuple[list[GatedPolicy], str]:
+              n_val: int, seeds_per_sequence: int = 1, seed: int = 0) -> tuple[list[GatedPolicy], str, list[str]]:
     """Each of ``models`` gated (:func:`fit_gate`, :func:`choose_margin`) on the env the models were trained on
     (``env_id``, ``env_kwargs``: the run's own, not the evaluation env's): ``train_episodes`` train-split episodes
     drawn with ``seed`` for the gain regressors and :func:`agents.evaluate.val_episodes` (``n_val`` for drawn
-    sources, ``seeds_per_sequence`` for "otb") for the margins; and one summary line describing the fits and choices."""
+    sources, ``seeds_per_sequence`` for "otb") for the margins; what they were fitted on, and per gate a line on its
+    choice (:func:`describe_choice`)."""
     bank = EpisodeBank(make_env(env_id, env_kwargs, split="train"), train_seeds(np.random.default_rng(seed), train_episodes))
     val_env = make_env(env_id, env_kwargs, split="val")
     episodes = val_episodes(val_env, n_val, seeds_per_sequence)
@@ -181,5 +177,6 @@ def fit_gates(models: Sequence[ObsPolicy], env_id: str, env_kwargs: dict[str, An
         choice = choose_margin(unset, val_env, episodes)
         gated.append(with_margin(unset, choice.margin))
         lines.append(describe_choice(unset.name, choice))
-    return gated, (f"the run's own env `{env_kwargs}`: gain regressors fitted on {len(bank)} train-split episodes (seed "
-                   f"{seed}), margins chosen on {len(episodes)} val-split episodes; " + "; ".join(lines))
+    fitted_on = (f"the run's own env `{env_kwargs}`: gain regressors fitted on {len(bank)} train-split episodes (seed "
+                 f"{seed}), margins chosen on {len(episodes)} val-split episodes")
+    return gated, fitted_on, lines

@@ -6,7 +6,8 @@ The gate opens (the tuner's parameters are used) where ``((obs − mean) / scale
 the track is left as measured. This module needs numpy only, so ``import agents`` stays light.
 
 The file: ``{"about": str, "margin": number | "inf" | "-inf", "mean": [F numbers], "scale": [F numbers > 0],
-"coef": [F numbers], "intercept": number}``; F is the tuner's number of observation features.
+"coef": [F numbers], "intercept": number}``; F is the tuner's number of observation features (strict JSON:
+±infinity only as the margin's strings).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.cli import json_number, json_vector, read_json
 from envs.data.atomic_files import write_text_atomic
 
 GATE_FILE = "gate.json"  # the gate of a tuner folder, read when the tuner is loaded
@@ -59,31 +61,14 @@ def write_gate(path: Path | str, gate: Gate, about: str) -> None:
 
 
 def read_gate(path: Path | str, n_features: int) -> Gate:
-    """The gate in the JSON file ``path`` for a tuner of ``n_features`` observation features; ValueError naming the
-    file and the field that is missing or malformed."""
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path}: not a readable gate file ({err})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: a gate file holds a JSON object, not {type(data).__name__}")
-    missing = [k for k in ("margin", *VECTORS, "intercept") if k not in data]
-    if missing:
-        raise ValueError(f"{path}: missing {missing}")
-    vectors = {}
-    for key in VECTORS:
-        value = data[key]
-        if (not isinstance(value, list) or len(value) != n_features
-                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)):
-            raise ValueError(f"{path}: {key!r} must be a list of {n_features} finite numbers (the tuner's features)")
-        vectors[key] = np.array(value, dtype=np.float64)
+    """The gate in the JSON file ``path`` (read as :func:`agents.cli.read_json` reads: bounded, strict) for a tuner of
+    ``n_features`` observation features; ValueError naming the file and the field that is missing or malformed."""
+    doc = read_json(Path(path))
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: a gate file holds a JSON object, not {type(doc).__name__}")
+    vectors = {k: json_vector(doc, k, n_features, path, what="the tuner's features") for k in VECTORS}
     if not (vectors["scale"] > 0).all():
-        raise ValueError(f"{path}: 'scale' must be > 0 everywhere")
-    intercept, margin = data["intercept"], data["margin"]
-    if isinstance(intercept, bool) or not isinstance(intercept, (int, float)) or not math.isfinite(intercept):
-        raise ValueError(f"{path}: 'intercept' must be a finite number")
-    if margin in ("inf", "-inf"):
-        margin = float(margin)
-    elif isinstance(margin, bool) or not isinstance(margin, (int, float)) or not math.isfinite(margin):
-        raise ValueError(f"{path}: 'margin' must be a finite number, \"inf\" or \"-inf\"")
-    return Gate(LinearGain(intercept=float(intercept), **vectors), float(margin))
+        raise ValueError(f"{path}: scale must be > 0 everywhere")
+    margin = doc.get("margin")
+    margin = float(margin) if margin in ("inf", "-inf") else json_number(doc, "margin", path)
+    return Gate(LinearGain(intercept=json_number(doc, "intercept", path), **vectors), margin)

@@ -18,7 +18,6 @@ read with ``allow_pickle=False``.
 from __future__ import annotations
 
 import json
-import math
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -28,12 +27,14 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents import cli
+from agents.cli import json_number, json_vector
 from envs.data import textfile
 from envs.data.atomic_files import atomic_write_file, write_text_atomic
 
 STATS_FORMAT = "bboxtune-vecnormalize-1"
 STATS = "vecnormalize.json"
 PICKLED_STATS = "vecnormalize.pkl"
+OBS_SIZE = "the observation size"
 REPLAY = "replay_buffer.npz"
 PICKLED_REPLAY = "replay_buffer.pkl"
 _REPLAY_ARRAYS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
@@ -64,21 +65,6 @@ def save_stats(venv: VecNormalize, path: Path) -> None:
     write_text_atomic(path, json.dumps(doc, indent=1) + "\n")
 
 
-def _number(doc: dict[str, Any], key: str, path: Path, low: float = -math.inf) -> float:
-    value = doc.get(key)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < low:
-        raise RunError(f"{path}: {key}={value!r}; expected a finite number >= {low:g}")
-    return float(value)
-
-
-def _vector(doc: Any, key: str, size: int, path: Path, low: float = -math.inf) -> np.ndarray:
-    values = doc.get(key) if isinstance(doc, dict) else None
-    if not isinstance(values, list) or len(values) != size or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= low for v in values):
-        raise RunError(f"{path}: {key} must be a list of {size} finite numbers >= {low:g} (the observation size)")
-    return np.array(values, dtype=np.float64)
-
-
 def load_stats(path: Path, venv: VecEnv, *, training: bool) -> VecNormalize:
     """``venv`` wrapped in a VecNormalize holding the statistics of the JSON file ``path``; :class:`RunError`
     naming the file if it is malformed or does not fit ``venv``'s observations."""
@@ -96,15 +82,14 @@ def load_stats(path: Path, venv: VecEnv, *, training: bool) -> VecNormalize:
     obs, ret = doc.get("obs_rms"), doc.get("ret_rms")
     if not isinstance(obs, dict) or not isinstance(ret, dict):
         raise RunError(f"{path}: obs_rms and ret_rms must be objects with mean, var, count")
-    norm = VecNormalize(venv, training=training, norm_obs=flags["norm_obs"], norm_reward=flags["norm_reward"],
-                        clip_obs=_number(doc, "clip_obs", path, 0.0), clip_reward=_number(doc, "clip_reward", path, 0.0),
-                        gamma=_number(doc, "gamma", path, 0.0), epsilon=_number(doc, "epsilon", path, 0.0))
-    norm.obs_rms.mean = _vector(obs, "mean", shape[0], path)
-    norm.obs_rms.var = _vector(obs, "var", shape[0], path, 0.0)
-    norm.obs_rms.count = _number(obs, "count", path, 0.0)
-    norm.ret_rms.mean = np.float64(_number(ret, "mean", path))
-    norm.ret_rms.var = np.float64(_number(ret, "var", path, 0.0))
-    norm.ret_rms.count = _number(ret, "count", path, 0.0)
+    settings = {k: json_number(doc, k, path, 0.0, RunError) for k in ("clip_obs", "clip_reward", "gamma", "epsilon")}
+    norm = VecNormalize(venv, training=training, norm_obs=flags["norm_obs"], norm_reward=flags["norm_reward"], **settings)
+    norm.obs_rms.mean = json_vector(obs, "mean", shape[0], path, what=OBS_SIZE, error=RunError)
+    norm.obs_rms.var = json_vector(obs, "var", shape[0], path, 0.0, OBS_SIZE, RunError)
+    norm.obs_rms.count = json_number(obs, "count", path, 0.0, RunError)
+    norm.ret_rms.mean = np.float64(json_number(ret, "mean", path, error=RunError))
+    norm.ret_rms.var = np.float64(json_number(ret, "var", path, 0.0, RunError))
+    norm.ret_rms.count = json_number(ret, "count", path, 0.0, RunError)
     return norm
 
 

@@ -207,20 +207,25 @@ class Tuner:
         """The policy's action (d,) in [-1, 1] for an observation."""
         return self.policy.predict(seen.obs[None])[0]
 
-    def tune(self, boxes: ArrayLike, tau: Any) -> dict[str, float | int]:
-        """The back end's parameters for the track (``horizon`` an int, the others floats), as ``env.step``
+    def params(self, seen: Observation) -> dict[str, float | int]:
+        """The back end's parameters for an observed track (``horizon`` an int, the others floats), as ``env.step``
         would apply them for the policy's action."""
-        seen = self.observe(boxes, tau)
         params = self.action_map.to_params(self.action(seen), seen.nominal)
         return {k: int(params[k][0]) if k == "horizon" else float(params[k][0]) for k in ACCEPTS[self.backend]}
+
+    def tune(self, boxes: ArrayLike, tau: Any) -> dict[str, float | int]:
+        """:meth:`params` of the track ``boxes`` at frame interval ``tau``."""
+        return self.params(self.observe(boxes, tau))
 
     def smooth(self, boxes: ArrayLike, tau: Any, params: dict[str, float | int] | None = None) -> np.ndarray:
         """The track filtered by the back end with ``params`` (default: :meth:`tune`'s), (T, 4) xywh px; NaN rows
         where there is no estimate (before the first measured frame). Without ``params``, a track the gate leaves
         alone is returned as given."""
-        if params is None and self.leaves_alone(self.observe(boxes, tau)):
-            return check_boxes(boxes).copy()
-        params = self.tune(boxes, tau) if params is None else params
+        if params is None:
+            seen = self.observe(boxes, tau)
+            if self.leaves_alone(seen):
+                return check_boxes(boxes).copy()
+            params = self.params(seen)
         if set(params) != set(ACCEPTS[self.backend]):
             raise ValueError(f"params has keys {sorted(params)}; back end {self.backend} takes {ACCEPTS[self.backend]}")
         y = xywh_to_cxcywh(check_boxes(boxes))

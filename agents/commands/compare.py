@@ -315,13 +315,14 @@ def run(argv: list[str] | None = None) -> Path:
     start = time.perf_counter()
     fitted = fit_baselines(train_env, oracle, settings, progress=True)
     print(f"fitted global and amortised on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
-    gated, gate_line = [], None
+    gated, gate_line, fitted_on = [], None, ""
     if args.gate:
         start = time.perf_counter()
         finals = [p for p in learned if not p.name.startswith(f"{algo}_best")]
-        gated, gate_line = fit_gates(finals, env_id, cfg["env_kwargs"], train_episodes=args.train_episodes,
-                                     n_val=args.val_episodes, seeds_per_sequence=args.seeds_per_sequence or
-                                     DEFAULT_SEEDS_PER_SEQUENCE, seed=args.seed)
+        gated, fitted_on, choices = fit_gates(finals, env_id, cfg["env_kwargs"], train_episodes=args.train_episodes,
+                                              n_val=args.val_episodes, seeds_per_sequence=args.seeds_per_sequence or
+                                              DEFAULT_SEEDS_PER_SEQUENCE, seed=args.seed)
+        gate_line = f"{fitted_on}; " + "; ".join(choices)
         print(f"fitted {len(gated)} gate(s) in {time.perf_counter() - start:.0f} s: {gate_line}")
         if groups:
             groups[f"{algo}{GATED}"] = [p.name for p in gated]
@@ -370,7 +371,7 @@ def run(argv: list[str] | None = None) -> Path:
     if gated:
         (out / GATES).mkdir(exist_ok=True)
         for policy in gated:
-            write_gate(out / GATES / f"{policy.name}.json", policy.gate, about=f"{policy.name}: {gate_line.split(';')[0]}")
+            write_gate(out / GATES / f"{policy.name}.json", policy.gate, about=f"{policy.name}: {fitted_on}")
     write_text_atomic(out / "summary.md", summary)
     print(summary.split("## Paired")[0])
     print(f"wrote {out}")

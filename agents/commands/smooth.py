@@ -127,8 +127,8 @@ def main(argv: list[str] | None = None) -> int:
             raw = score(args.otb_root, args.results)
     files, rows = {}, []
     for name, (path, boxes) in tqdm(results.items(), desc=f"smooth ({tuner.name})", unit="seq"):
-        params = tuner.tune(boxes, tau)
-        alone = tuner.leaves_alone(tuner.observe(boxes, tau))
+        seen = tuner.observe(boxes, tau)
+        params, alone = tuner.params(seen), tuner.leaves_alone(seen)
         files[name], n_missing_out = box_text(boxes if alone else tuner.smooth(boxes, tau, params))
         n_missing_in = int(np.isnan(boxes).all(axis=1).sum())
         rows.append([path.stem, len(boxes), n_missing_in, n_missing_out, int(alone),

@@ -10,6 +10,7 @@ import pytest
 from agents.baselines import ObsPolicy
 from agents.episodes import EpisodeBank
 from agents.evaluate import val_episodes
+from agents.gate_file import Gate
 from agents.gate import (GatedPolicy, choose_margin, fit_gain, fit_gate, gain_labels, gated_name, pick_margin,
                          with_margin)
 from agents.runs import make_env
@@ -44,7 +45,7 @@ def test_gated_name_keeps_the_seed_suffix_last(name: str, gated: str) -> None:
 
 
 def test_the_model_acts_only_above_the_margin() -> None:
-    gated = GatedPolicy(Constant([0.3, 0.4]), FirstFeature(), margin=0.5, name="g")
+    gated = GatedPolicy(Constant([0.3, 0.4]), Gate(FirstFeature(), margin=0.5), name="g")
     obs = np.array([[0.2, 9.0], [0.6, 9.0], [0.5, 9.0], [-3.0, 9.0]])
     assert gated.opens(obs).tolist() == [False, True, False, False]
     assert [gated.leaves_alone(o) for o in obs] == [True, False, True, True]
@@ -81,11 +82,11 @@ def test_a_fitted_gate_opens_where_smoothing_pays() -> None:
     train_env, val_env = make_env(TUNE_ID, SHORT, split="train"), make_env(TUNE_ID, SHORT, split="val")
     inner = Constant([0.0, 0.0])
     gated = fit_gate(EpisodeBank(train_env, train_seeds(np.random.default_rng(0), 60)), inner)
-    assert gated.name == "constant_gated" and gated.margin == np.inf
+    assert gated.name == "constant_gated" and gated.gate.margin == np.inf
     val = EpisodeBank(val_env, split_seeds("val", 40))
     gains = gain_labels(val, inner)
     assert 0.1 < np.mean(gains > 0) < 0.95  # both kinds of episode exist
-    assert np.corrcoef(gated.gain.predict(val.observations.astype(np.float64)), gains)[0, 1] > 0.8
+    assert np.corrcoef(gated.gate.gain.predict(val.observations), gains)[0, 1] > 0.8
     choice = choose_margin(gated, val_env, val_episodes(val_env, 40))
     assert np.isfinite(choice.margin) and choice.val_open[np.inf] == 0.0 and choice.val_open[-np.inf] == 1.0
     assert choice.val_means[-np.inf] == pytest.approx(np.mean(gains))  # the same val episodes, scored in the env

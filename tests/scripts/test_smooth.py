@@ -206,8 +206,8 @@ CASES = [
     misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--unknown"),
     misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{missing}", mentions="--gate"),
     misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{dir}", mentions="--gate"),
-    misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{file}", mentions="not a readable gate file"),
-    misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{bad_json}", mentions="{bad_json}"),
+    misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{file}", mentions="{file}:1:1: invalid JSON"),
+    misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{bad_json}", mentions="{bad_json}:2:7: invalid JSON"),
     misuse(*BASE, "--pretrained", "sim_ufir_cmn", "--gate", "{bad_json}", "--no-gate", mentions="--no-gate"),
     misuse("--res", "{results}", "--out", "{out}", mentions="--res"),  # flags are not abbreviated
 ]
