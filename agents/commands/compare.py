@@ -47,6 +47,16 @@ parameter_schedule.png shows test episode 0's parameters per window against its 
 regime switches (scenario=nonstationary).
 
     python scripts/compare.py --model runs/ppo_retune --oneshot-model runs/ppo_oneshot --env-kwargs scenario=nonstationary
+    python scripts/compare.py --env bboxtune/FilterRetune-v0 --env-kwargs scenario=nonstationary window=10 \
+        --oneshot-model runs/ppo_oneshot --out runs/retune_baselines                  # no trained re-tuner
+
+Without --model (only with --env bboxtune/FilterRetune-v0, and --out) the same comparison runs without a trained
+sequential tuner, in the env that --env-kwargs sets on EnvConfig's defaults: the baselines, oracles and window
+regressors only, which need no RL run. --regime-informed (scenario=nonstationary, source sim) adds
+window_regime_informed[_s<k>] (window_amortised fitted and asked with the true regime schedule around each window
+after its observation) and regime_oracle (in each window of a true regime state the grid action best over that
+state's windows, with the truth) (agents.regime_informed): references that use the truth, for how much of the
+one-shot → per-window gap knowing the regimes reaches.
 
 Writes to --out (default RUN_DIR/compare; a new or empty folder, nothing is overwritten): results.csv (one
 row per method × episode: method, episode, sequence, tracker, rmse, success_auc, precision20, …; sequence and
@@ -84,6 +94,7 @@ from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation
                              standard_policies)
 from agents.gate import GATED, fit_gates
 from agents.gate_file import write_gate
+from agents.regime_informed import REGIME_ORACLE, WINDOW_REGIME_INFORMED
 from agents.plots import gain_boxplot, otb_curves, performance_profile, trajectories
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.commands.compare_retune import ONE_STEP_ENV, RETUNE_ENV, compare_retune, load_oneshot
@@ -106,12 +117,14 @@ DEFAULT_VAL_EPISODES = 100  # sim / video val episodes the margins of window_anc
 
 def build_parser() -> ArgumentParser:
     p = ArgumentParser(prog="compare.py", description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False)
-    p.add_argument("--model", type=existing_dir, nargs="+", required=True, metavar="RUN_DIR",
+    p.add_argument("--model", type=existing_dir, nargs="+", default=None, metavar="RUN_DIR",
                    help="a scripts/train.py run directory; several (runs of one env and algorithm, e.g. training seeds): "
                         "each scored on the same episodes as <algo>_s<seed>, and summary.md adds IQM and mean across "
                         "them with stratified bootstrap CIs (agents.seeds_report; FilterTune-v0 runs also "
-                        "performance_profile.png); needs --out")
-    p.add_argument("--env", default=None, metavar="ID", help=f"env id (default: the run's; one of {ENVS}, the run's kind)")
+                        f"performance_profile.png); needs --out. Required, except with --env {RETUNE_ENV} (then the "
+                        "re-tuning baselines and window regressors only, in the env of --env-kwargs)")
+    p.add_argument("--env", default=None, metavar="ID",
+                   help=f"env id (default: the run's; one of {ENVS}, the run's kind); without --model: {RETUNE_ENV}")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
                    help="override the run's env arguments (envs.episodes.config.EnvConfig fields, YAML values; KEY:VALUE also "
                         "accepted), e.g. source=otb track_length=100; the split is --split")
@@ -148,6 +161,11 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--anchor-margin", type=float_range(0.0), default=None, metavar="M",
                    help=f"{RETUNE_ENV} runs with --oneshot-model: the margin of {WINDOW_ANCHORED} and {WINDOW_RESIDUAL} (predicted log-RMSE "
                         "gain a switch away from the one-shot action must exceed), instead of choosing it on val episodes")
+    p.add_argument("--regime-informed", action="store_true",
+                   help=f"{RETUNE_ENV} with scenario=nonstationary (source sim): also fit {WINDOW_AMORTISED} told the true "
+                        f"regime schedule, scored as {WINDOW_REGIME_INFORMED}[_s<k>], and {REGIME_ORACLE}, the best action per true "
+                        "regime state chosen with the truth (agents.regime_informed: references that use the truth, for "
+                        "the share of the one-shot → per-window gap that knowing the regimes reaches)")
     p.add_argument("--gate", action="store_true",
                    help=f"{ONE_STEP_ENV} runs: also score each final model gated as <algo>{GATED}[_s<seed>] (agents.gate: "
                         "its action where a regressor predicts it beats the raw measurements by more than a margin, else "
@@ -158,8 +176,15 @@ def build_parser() -> ArgumentParser:
     return p
 
 
+def no_run_config() -> dict[str, Any]:
+    """The stand-in for a run's config.yml without --model: a FilterRetune-v0 env with EnvConfig's defaults (changed
+    by --env-kwargs) and no trained tuner."""
+    return {"env_id": RETUNE_ENV, "env_kwargs": {}, "algo": None}
+
+
 def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[str, Any]) -> tuple[str, dict[str, Any]]:
-    """The env id and kwargs to evaluate in: the run's, changed by --env / --env-kwargs (checked here)."""
+    """The env id and kwargs to evaluate in: the run's (without --model: :func:`no_run_config`'s), changed by --env /
+    --env-kwargs (checked here)."""
     env_id = args.env or cfg["env_id"]
     if env_id != cfg["env_id"]:
         parser.error(f"--env {env_id}: {args.model} was trained on {cfg['env_id']}; compare.py scores a run on its own env id")
@@ -167,6 +192,8 @@ def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[s
         parser.error(f"--oneshot-model: only for runs of {RETUNE_ENV} (this one is of {env_id})")
     if args.fit_seeds != 1 and env_id != RETUNE_ENV:
         parser.error(f"--fit-seeds: only for runs of {RETUNE_ENV} (this one is of {env_id})")
+    if args.regime_informed and env_id != RETUNE_ENV:
+        parser.error(f"--regime-informed: only for {RETUNE_ENV} (this evaluation's env is {env_id})")
     if args.gate and env_id != ONE_STEP_ENV:
         parser.error(f"--gate: only for runs of {ONE_STEP_ENV} (this one is of {env_id})")
     if args.anchor_margin is not None and args.oneshot_model is None:
@@ -190,9 +217,12 @@ def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[s
         overrides["trackers"] = list(args.trackers)
     env_kwargs = {**cfg["env_kwargs"], **overrides}
     try:
-        EnvConfig.from_kwargs(**{**env_kwargs, "split": args.split})
+        config = EnvConfig.from_kwargs(**{**env_kwargs, "split": args.split})
     except (TypeError, ValueError) as err:
         parser.error(f"{env_flags(args)}: {err}" if overrides else f"{args.model}/config.yml: env_kwargs: {err}")
+    if args.regime_informed and (config.source, config.scenario) != ("sim", "nonstationary"):
+        parser.error(f"--regime-informed: needs source 'sim' with scenario=nonstationary (a true regime schedule); this "
+                     f"evaluation's env has source {config.source!r}, scenario {config.scenario!r}")
     return env_id, env_kwargs
 
 
@@ -248,8 +278,10 @@ def load_seed_runs(runs: list[Path], cfg: dict[str, Any], env: gym.Env, trust_pi
     return learned, {k: v for k, v in groups.items() if len(v) == len(runs)}
 
 
-def describe_models(run: Path, runs: list[Path], learned: list[SB3Policy], cfg: dict[str, Any]) -> str:
+def describe_models(run: Path | None, runs: list[Path], learned: list[SB3Policy], cfg: dict[str, Any]) -> str:
     """The settings line of the scored model(s)."""
+    if not runs:
+        return "none (no --model: the re-tuning baselines and window regressors only)"
     if len(runs) == 1:
         return f"`{run}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})"
     return ", ".join(f"`{r}`" for r in runs) + " (one per training seed)"
@@ -274,14 +306,18 @@ def run(argv: list[str] | None = None) -> Path:
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     command = shlex.join(["python", "scripts/compare.py", *(sys.argv[1:] if argv is None else argv)])
-    runs, args.model = args.model, args.model[0]
-    if len(runs) > 1 and args.out is None:
-        parser.error("--out: required with several --model")
+    runs, args.model = args.model or [], (args.model or [None])[0]
+    if not runs and args.env != RETUNE_ENV:
+        parser.error(f"--model: required (a {ONE_STEP_ENV} comparison scores a trained run); without one, --env "
+                     f"{RETUNE_ENV} scores the re-tuning baselines and window regressors only")
+    if len(runs) != 1 and args.out is None:
+        parser.error("--out: required with several --model" if runs else "--out: required without --model")
     out = args.out or args.model / "compare"
     groups: dict[str, list[str]] = {}
+    learned: list[SB3Policy] = []
     try:  # everything that can be checked is checked before the (long) fitting and scoring
         check_free(out, "choose another --out")
-        cfg = load_config(args.model)
+        cfg = load_config(args.model) if runs else no_run_config()
         if cfg["env_id"] not in ENVS:
             raise RunError(f"{args.model} was trained on {cfg['env_id']}; compare.py scores runs of {ENVS}")
         env_id, env_kwargs = evaluation_env(parser, args, cfg)
@@ -293,7 +329,7 @@ def run(argv: list[str] | None = None) -> Path:
         episodes = episode_plan(parser, args, test_env)
         if len(runs) > 1:
             learned, groups = load_seed_runs(runs, cfg, test_env, args.trust_pickle)
-        else:
+        elif runs:
             learned = load_learned(args.model, cfg, test_env, args.trust_pickle)
         oneshot = load_oneshot(args, env_kwargs) if args.oneshot_model is not None else None
         out.mkdir(parents=True, exist_ok=True)

@@ -19,6 +19,8 @@ from agents.evaluate import val_episodes
 from agents.plots import gain_boxplot, parameter_schedule
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.report_retune import retune_tables
+from agents.regime_informed import (REGIME_ORACLE, WINDOW_REGIME_INFORMED, RegimeInformedPolicy, RegimeObservation,
+                                    RegimeOracle)
 from agents.retune_eval import (ONESHOT_LEARNED, ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
                                 evaluate_retune, window_oracle)
 from agents.run_files import RunError
@@ -69,7 +71,8 @@ class Anchors:
 def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace, anchors: Anchors | None
                           ) -> tuple[list[WindowRegressorPolicy], list[AnchoredWindowPolicy], dict[str, dict[float, float]]]:
     """``--fit-seeds`` window regressors (agents.window_regressor), each on its own ``--train-episodes`` train
-    episodes, as ``window_amortised`` policies; with ``anchors`` also as ``window_anchored`` policies and, from a
+    episodes, as ``window_amortised`` policies (with ``--regime-informed`` each followed by the same fit told the true
+    schedule, agents.regime_informed); with ``anchors`` also as ``window_anchored`` policies and, from a
     second regressor on the same episodes, ``window_residual`` policies (both anchored on the test split), each with
     the margin ``--anchor-margin`` or the one chosen on the val episodes (each margin's mean log-ratio on them: the
     third item)."""
@@ -83,6 +86,11 @@ def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace, anchors:
                                               anchor=anchors and anchors.by_split["train"], progress=True)
         amortised.append(WindowRegressorPolicy(regressor, candidates, name=WINDOW_AMORTISED + suffix))
         print(f"fitted {amortised[-1].name} on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
+        if args.regime_informed:
+            start = time.perf_counter()
+            amortised.append(RegimeInformedPolicy.fit(RegimeObservation(train_env), noise_seeds, seed=seed,
+                                                      name=WINDOW_REGIME_INFORMED + suffix, progress=True))
+            print(f"fitted {amortised[-1].name} on the same episodes in {time.perf_counter() - start:.0f} s")
         if anchors is None:
             continue
         start = time.perf_counter()
@@ -137,22 +145,24 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     learned, groups, models_described = models
     config = env.unwrapped.config
     search = GridSearch(budget=args.oracle_budget)
-    print(f"seed: {args.seed}\n{cfg['algo']} from {args.model}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} "
-          f"episodes, window {config.window}")
+    scored = f"{cfg['algo']} from {args.model}" if learned else "no trained tuner (no --model)"
+    print(f"seed: {args.seed}\n{scored}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} episodes, window {config.window}")
     anchors = Anchors.build(oneshot, env_kwargs, args.val_episodes) if oneshot else None
     regressors, anchored, val_means = fit_window_regressors(train_env, args, anchors)
     online = [OneShotLearned(oneshot.policy, oneshot.tune_env, online=True)] if oneshot else []
     methods = [Sequential(RulePolicy()), OneShotOracle(search), *([oneshot] if oneshot else []), *online,
-               window_oracle(search), *(Sequential(p) for p in [*regressors, *anchored, *learned])]
+               window_oracle(search), *([RegimeOracle(search)] if args.regime_informed else []),
+               *(Sequential(p) for p in [*regressors, *anchored, *learned])]
     sequential = [p.name for p in [*regressors, *anchored, *learned]]
     start = time.perf_counter()
     result = evaluate_retune(env, methods, episodes, progress=True)
     print(f"scored {len(result.truth_at_test)} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
     write_results_csv(out / "results.csv", result.rows)
-    title = f"{cfg['algo']} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
+    title = f"{cfg['algo'] if learned else 'window tuners'} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
     gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
     ex = result.example
-    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, *(p.name for p in anchored[:2]), learned[0].name)
+    plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, *(p.name for p in anchored[:2]),
+               *(p.name for p in learned[:1]))
     shown = {k: v for k, v in ex["schedules"].items() if k in plotted}
     parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
     settings_md = {"command": f"`{command}`", "model": models_described,
@@ -162,12 +172,20 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                         **({ONESHOT_LEARNED: oneshot.policy.normalizer} if oneshot and isinstance(oneshot.policy, SB3Policy)
                            else {})},
                        {p.name: env.unwrapped.observation_names for p in learned}),
-                   WINDOW_AMORTISED: f"{', '.join(p.name for p in regressors)}: per-window regressor(s) "
+                   WINDOW_AMORTISED: f"{', '.join(p.name for p in regressors if not isinstance(p, RegimeInformedPolicy))}: "
+                                     f"per-window regressor(s) "
                                      f"(agents.window_regressor, {len(regressors[0].candidates)} candidate actions) fitted "
                                      f"on {args.train_episodes} train-split episodes each (seeds {args.seed} … "
                                      f"{args.seed + args.fit_seeds - 1})"
                                      + (f"; its candidates include the `oneshot_learned` action (the anchor of "
                                         f"{WINDOW_ANCHORED})" if anchors else ""),
+                   **({WINDOW_REGIME_INFORMED: "a reference that uses the truth: the same fit on the same episodes "
+                                               "with the true regime schedule around each window after the observation "
+                                               "(agents.regime_informed, --regime-informed)",
+                       REGIME_ORACLE: f"in every window of a true regime state (noise regime × manoeuvre × gap, the "
+                                      f"window's majority) the grid action (<= {search.budget}) with the lowest squared "
+                                      "error over that state's windows, with the truth (agents.regime_informed)"}
+                      if args.regime_informed else {}),
                    **({WINDOW_ANCHORED: anchored_settings(anchored, val_means, anchors, around_anchor=False),
                        WINDOW_RESIDUAL: anchored_settings(anchored, val_means, anchors, around_anchor=True)} if anchors else {}),
                    "env": f"`{env_kwargs}`",
@@ -179,8 +197,10 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     summary = summary_markdown(result.rows, result.truth_at_test, learned=sequential, title=title,
                                settings=settings_md, figures=["gain_boxplot.png", "parameter_schedule.png"],
                                n_boot=args.bootstrap, seed=args.seed, rmse_oracle=WINDOW_ORACLE)
-    if len(regressors) > 1:
-        groups = {**groups, WINDOW_AMORTISED: [p.name for p in regressors]}
+    if args.fit_seeds > 1:
+        groups = {**groups, **{name: [p.name for p in regressors if p.name.startswith(name)]
+                               for name in (WINDOW_AMORTISED, WINDOW_REGIME_INFORMED) if args.regime_informed
+                               or name == WINDOW_AMORTISED}}
         groups.update({name: [p.name for p in anchored if p.name.startswith(name)]
                        for name in (WINDOW_ANCHORED, WINDOW_RESIDUAL) if anchored})
     head, figures = summary.split("## Figures")

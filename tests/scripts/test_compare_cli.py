@@ -19,6 +19,13 @@ OTB = os.environ.get("OTB_ROOT", "")
 WITH_OTB = {"OTB_ROOT": OTB}
 
 CASES = [
+    misuse("--episodes", "3", mentions="--model: required"),
+    misuse("--env", "bboxtune/FilterTune-v0", "--out", "{out}", mentions="--model: required"),
+    misuse("--env", "bboxtune/FilterRetune-v0", mentions="--out: required without --model"),
+    misuse("--env", "bboxtune/FilterRetune-v0", "--env-kwargs", "window=0", "--out", "{out}", mentions="--env-kwargs"),
+    misuse("--env", "bboxtune/FilterRetune-v0", "--regime-informed", "--out", "{out}",
+           mentions="--regime-informed: needs source 'sim' with scenario=nonstationary"),
+    misuse("--model", "{run}", "--regime-informed", mentions="--regime-informed: only for bboxtune/FilterRetune-v0"),
     misuse("--model", "{run}", "--env-kwargs", "track_length=3", mentions="--env-kwargs: track_length=3"),
     misuse("--model", "{run}", "--env-kwargs", "track_length:abc", mentions="--env-kwargs: track_length='abc'"),
     misuse("--model", "{run}", "--env-kwargs", "nope=1", mentions="nope"),

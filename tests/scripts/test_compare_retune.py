@@ -114,3 +114,25 @@ def test_an_offline_view_run_is_scored_and_a_causal_model_is_refused_there(train
                      "--out", str(tmp_path / "refused")])
     assert exc.value.code == 2
     assert "observation" in capsys.readouterr().err and not (tmp_path / "refused").exists()
+
+
+def test_without_model_the_baselines_regressors_and_the_regime_informed_reference_are_scored(tmp_path: Path) -> None:
+    """No --model: --env bboxtune/FilterRetune-v0 and --env-kwargs give the env; every method but a trained tuner
+    is scored, and --regime-informed adds the regressor told the true schedule, with its own across-seeds group, and
+    the best action per true regime state."""
+    out = compare.run(["--env", "bboxtune/FilterRetune-v0", *NONSTATIONARY, "window:20", "--episodes", "3",
+                       "--oracle-budget", "16", "--bootstrap", "50", "--train-episodes", "11", "--fit-seeds", "2",
+                       "--regime-informed", "--out", str(tmp_path / "c")])
+    with open(out / "results.csv") as fh:
+        table = list(csv.DictReader(fh))
+    assert {r["method"] for r in table} == {"raw", "rule", "oneshot_oracle", "window_oracle", "regime_oracle", "adaptive", "imm",
+                                            "window_amortised_s0", "window_amortised_s1",
+                                            "window_regime_informed_s0", "window_regime_informed_s1"}
+    assert {r["scored_from"] for r in table} == {"20"}
+    summary = (out / "summary.md").read_text()
+    assert "- model: none (no --model" in summary and "window tuners vs baselines" in summary
+    assert "| window_regime_informed_s0 | regimes (truth) |" in summary
+    assert "| regime_oracle | y (truth, per regime state) |" in summary and "- regime_oracle: in every window" in summary
+    assert "- window_amortised: window_amortised_s0, window_amortised_s1: per-window" in summary
+    seeds = summary.split("## Across training seeds")[1].split("## Figures")[0]
+    assert "| window_amortised | 2 |" in seeds and "| window_regime_informed | 2 |" in seeds
