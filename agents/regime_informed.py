@@ -12,8 +12,9 @@ the regimes. It uses the truth at test (``truth_at_test`` "regimes (truth)") and
 
 ``regime_oracle`` (:class:`RegimeOracle`) splits the frames after the warm-up into true regime states — noise regime ×
 in a manoeuvre × in a gap (:func:`regime_states`) — gives each window the state most of its frames are in, and plays
-in every window of a state the grid action with the lowest squared error, against the truth, summed over that state's
-windows (every candidate held over the rest of the track in one run, ``env.unwrapped.score_rest``). For the FIR family a
+in every window of a state the action with the lowest squared error, against the truth, summed over that state's
+windows: the oracles' grid search (:class:`agents.baselines.GridSearch`, the rule's action a candidate, then local
+refinements), each candidate held over the rest of the track in one run (``env.unwrapped.score_rest``). For the FIR family a
 window's estimates do not depend on earlier windows' parameters, so the pooled errors are exactly those of the
 windows played; for the Kalman family the state carries over and they are an approximation. It is what a tuner that
 knew every regime boundary and tuned each regime with the truth would reach — less than the greedy per-window
@@ -33,9 +34,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from agents.baselines import GridSearch
+from agents.baselines import GridSearch, RulePolicy
 from agents.retune_eval import RetuneMethod
-from agents.window_regressor import WindowRegressorPolicy, candidate_grid
+from agents.window_regressor import WindowRegressorPolicy
 
 WINDOW_REGIME_INFORMED, REGIME_ORACLE = "window_regime_informed", "regime_oracle"
 CHUNKS = 5  # windows of schedule features: the coming one and the 4 before it
@@ -114,7 +115,7 @@ def regime_states(schedule: dict[str, Any], n_frames: int) -> np.ndarray:
 
 
 class RegimeOracle(RetuneMethod):
-    """The best grid action per true regime state, chosen with the truth (see the module docstring)."""
+    """The best action per true regime state, searched with the truth (see the module docstring)."""
 
     name, truth_at_test = REGIME_ORACLE, "y (truth, per regime state)"
 
@@ -124,18 +125,24 @@ class RegimeOracle(RetuneMethod):
     def play(self, env: gym.Env, obs: np.ndarray) -> list[dict[str, Any]]:
         base = env.unwrapped
         ep, start, W = base.episode, base.window_start, base.config.window
-        candidates = candidate_grid(base.action_map.dim, self.search.budget)
-        est = base.score_rest(candidates)["estimates"]  # (A, T − start, 4)
         truth = ep.truth[start:]
-        squared = np.nansum((est - truth) ** 2, axis=-1)  # (A, T − start); no truth or no estimate: 0
         states = regime_states(ep.scenario, len(ep.y))[start:]
         bounds = [(lo, min(lo + W, len(states))) for lo in range(0, len(states), W)]
         window_state = np.array([np.bincount(states[lo:hi]).argmax() for lo, hi in bounds])
+        cache: dict[bytes, np.ndarray] = {}
+
+        def squared(actions: np.ndarray) -> np.ndarray:
+            """(A, T − start) squared error of each action held to the end (0: no truth or no estimate)."""
+            key = actions.tobytes()
+            if key not in cache:
+                est = base.score_rest(actions)["estimates"]
+                cache[key] = np.nansum((est - truth) ** 2, axis=-1)
+            return cache[key]
+
+        rule = RulePolicy().episode_action(ep, base.action_map, base.config.backend)
         best = {}
         for s in np.unique(window_state):
             frames = np.concatenate([np.arange(lo, hi) for (lo, hi), ws in zip(bounds, window_state) if ws == s])
-            best[s] = candidates[int(np.argmin(squared[:, frames].sum(axis=1)))]
-        infos = []
-        for s in window_state:
-            infos.append(env.step(best[s])[4])
-        return infos
+            best[s] = self.search.search(lambda a, f=frames: {"reward": -squared(a)[:, f].sum(axis=1)},
+                                         base.action_map.dim, extra=rule[None])[0]
+        return [env.step(best[s])[4] for s in window_state]

@@ -54,7 +54,7 @@ Without --model (only with --env bboxtune/FilterRetune-v0, and --out) the same c
 sequential tuner, in the env that --env-kwargs sets on EnvConfig's defaults: the baselines, oracles and window
 regressors only, which need no RL run. --regime-informed (scenario=nonstationary, source sim) adds
 window_regime_informed[_s<k>] (window_amortised fitted and asked with the true regime schedule around each window
-after its observation) and regime_oracle (in each window of a true regime state the grid action best over that
+after its observation) and regime_oracle (in each window of a true regime state the action best over that
 state's windows, with the truth) (agents.regime_informed): references that use the truth, for how much of the
 one-shot → per-window gap knowing the regimes reaches.
 
@@ -94,8 +94,8 @@ from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation
                              standard_policies)
 from agents.gate import GATED, fit_gates
 from agents.gate_file import write_gate
-from agents.regime_informed import REGIME_ORACLE, WINDOW_REGIME_INFORMED
 from agents.plots import gain_boxplot, otb_curves, performance_profile, trajectories
+from agents.regime_informed import REGIME_ORACLE, WINDOW_REGIME_INFORMED
 from agents.report import by_method, summary_markdown, write_results_csv
 from agents.commands.compare_retune import ONE_STEP_ENV, RETUNE_ENV, compare_retune, load_oneshot
 from agents.run_files import RunError

@@ -182,9 +182,9 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                    **({WINDOW_REGIME_INFORMED: "a reference that uses the truth: the same fit on the same episodes "
                                                "with the true regime schedule around each window after the observation "
                                                "(agents.regime_informed, --regime-informed)",
-                       REGIME_ORACLE: f"in every window of a true regime state (noise regime × manoeuvre × gap, the "
-                                      f"window's majority) the grid action (<= {search.budget}) with the lowest squared "
-                                      "error over that state's windows, with the truth (agents.regime_informed)"}
+                       REGIME_ORACLE: "in every window of a true regime state (noise regime × manoeuvre × gap, the "
+                                      "window's majority) the action with the lowest squared error over that state's "
+                                      "windows, with the truth, searched as the oracles (agents.regime_informed)"}
                       if args.regime_informed else {}),
                    **({WINDOW_ANCHORED: anchored_settings(anchored, val_means, anchors, around_anchor=False),
                        WINDOW_RESIDUAL: anchored_settings(anchored, val_means, anchors, around_anchor=True)} if anchors else {}),
