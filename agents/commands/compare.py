@@ -88,16 +88,16 @@ import gymnasium as gym
 import torch
 
 from agents.baselines import GridSearch, OraclePolicy
-from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, float_range, int_range, key_values,
+from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, key_values,
                         nonnegative_int, out_dir, positive_int, tracker_set)
 from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,
                              standard_policies)
 from agents.gate import GATED, fit_gates
 from agents.gate_file import write_gate
 from agents.plots import gain_boxplot, otb_curves, performance_profile, trajectories
-from agents.regime_informed import REGIME_ORACLE, WINDOW_REGIME_INFORMED
 from agents.report import by_method, summary_markdown, write_results_csv
-from agents.commands.compare_retune import ONE_STEP_ENV, RETUNE_ENV, compare_retune, load_oneshot
+from agents.commands.compare_retune import (ONE_STEP_ENV, RETUNE_ENV, add_retune_arguments, check_regime_source,
+                                            check_retune_flags, compare_retune, load_oneshot, no_run_config)
 from agents.run_files import RunError
 from agents.runs import ENV_ERRORS, SB3Policy, check_free, describe_held_features, load_config, make_env
 from agents.safe_load import check_env_match
@@ -144,28 +144,15 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--train-episodes", type=int_range(MIN_TRAIN_EPISODES), default=1000,
                    help=f"train episodes for the amortised regressor ({RETUNE_ENV} runs: for {WINDOW_AMORTISED}, each "
                         "of its windows a sample) (>= 11: it holds out 10 %% for early stopping, which needs 2)")
-    p.add_argument("--fit-seeds", type=positive_int, default=1, metavar="K",
-                   help=f"{RETUNE_ENV} runs: fit {WINDOW_AMORTISED} K times (seeds --seed … --seed + K − 1, each on its own "
-                        f"--train-episodes train episodes), scored as {WINDOW_AMORTISED}_s<k> when K > 1")
     p.add_argument("--global-trials", type=positive_int, default=64, help="Optuna TPE trials of the global tuner")
     p.add_argument("--oracle-budget", type=positive_int, default=300, help="first-stage candidates of the oracle's grid search")
     p.add_argument("--bootstrap", type=positive_int, default=2000, help="bootstrap resamples")
-    p.add_argument("--oneshot-model", type=existing_dir, default=None, metavar="RUN_DIR",
-                   help=f"{RETUNE_ENV} runs: a {ONE_STEP_ENV} run scored as oneshot_learned (its action for the whole "
-                        "track); without it that row is left out")
+    add_retune_arguments(p)
     p.add_argument("--val-episodes", type=int_range(1, SPLIT_SIZE), default=None,
                    help=f"{RETUNE_ENV} runs with --oneshot-model: val-split episodes the margins of {WINDOW_ANCHORED} and "
                         f"{WINDOW_RESIDUAL} are chosen on; with --gate, those of the gates (default {DEFAULT_VAL_EPISODES}; "
                         "sim and video sources: OTB sources take every val sequence, once for the anchored margins and "
                         "--seeds-per-sequence times for the gates, and every tracker's output of it)")
-    p.add_argument("--anchor-margin", type=float_range(0.0), default=None, metavar="M",
-                   help=f"{RETUNE_ENV} runs with --oneshot-model: the margin of {WINDOW_ANCHORED} and {WINDOW_RESIDUAL} (predicted log-RMSE "
-                        "gain a switch away from the one-shot action must exceed), instead of choosing it on val episodes")
-    p.add_argument("--regime-informed", action="store_true",
-                   help=f"{RETUNE_ENV} with scenario=nonstationary (source sim): also fit {WINDOW_AMORTISED} told the true "
-                        f"regime schedule, scored as {WINDOW_REGIME_INFORMED}[_s<k>], and {REGIME_ORACLE}, the best action per true "
-                        "regime state chosen with the truth (agents.regime_informed: references that use the truth, for "
-                        "the share of the one-shot → per-window gap that knowing the regimes reaches)")
     p.add_argument("--gate", action="store_true",
                    help=f"{ONE_STEP_ENV} runs: also score each final model gated as <algo>{GATED}[_s<seed>] (agents.gate: "
                         "its action where a regressor predicts it beats the raw measurements by more than a margin, else "
@@ -176,29 +163,15 @@ def build_parser() -> ArgumentParser:
     return p
 
 
-def no_run_config() -> dict[str, Any]:
-    """The stand-in for a run's config.yml without --model: a FilterRetune-v0 env with EnvConfig's defaults (changed
-    by --env-kwargs) and no trained tuner."""
-    return {"env_id": RETUNE_ENV, "env_kwargs": {}, "algo": None}
-
-
 def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     """The env id and kwargs to evaluate in: the run's (without --model: :func:`no_run_config`'s), changed by --env /
     --env-kwargs (checked here)."""
     env_id = args.env or cfg["env_id"]
     if env_id != cfg["env_id"]:
         parser.error(f"--env {env_id}: {args.model} was trained on {cfg['env_id']}; compare.py scores a run on its own env id")
-    if args.oneshot_model is not None and env_id != RETUNE_ENV:
-        parser.error(f"--oneshot-model: only for runs of {RETUNE_ENV} (this one is of {env_id})")
-    if args.fit_seeds != 1 and env_id != RETUNE_ENV:
-        parser.error(f"--fit-seeds: only for runs of {RETUNE_ENV} (this one is of {env_id})")
-    if args.regime_informed and env_id != RETUNE_ENV:
-        parser.error(f"--regime-informed: only for {RETUNE_ENV} (this evaluation's env is {env_id})")
+    check_retune_flags(parser.error, args, env_id)
     if args.gate and env_id != ONE_STEP_ENV:
         parser.error(f"--gate: only for runs of {ONE_STEP_ENV} (this one is of {env_id})")
-    if args.anchor_margin is not None and args.oneshot_model is None:
-        parser.error(f"--anchor-margin: only with --oneshot-model (it sets {WINDOW_ANCHORED} and {WINDOW_RESIDUAL}, "
-                     "which are anchored there)")
     if args.val_episodes is not None and args.oneshot_model is None and not args.gate:
         parser.error(f"--val-episodes: only with --oneshot-model ({WINDOW_ANCHORED} and {WINDOW_RESIDUAL}'s margins) or "
                      "--gate (the gates' margins)")
@@ -220,9 +193,7 @@ def evaluation_env(parser: ArgumentParser, args: argparse.Namespace, cfg: dict[s
         config = EnvConfig.from_kwargs(**{**env_kwargs, "split": args.split})
     except (TypeError, ValueError) as err:
         parser.error(f"{env_flags(args)}: {err}" if overrides else f"{args.model}/config.yml: env_kwargs: {err}")
-    if args.regime_informed and (config.source, config.scenario) != ("sim", "nonstationary"):
-        parser.error(f"--regime-informed: needs source 'sim' with scenario=nonstationary (a true regime schedule); this "
-                     f"evaluation's env has source {config.source!r}, scenario {config.scenario!r}")
+    check_regime_source(parser.error, args, config)
     return env_id, env_kwargs
 
 

@@ -1,20 +1,23 @@
 """The FilterRetune-v0 part of ``scripts/compare.py``: the re-tuning methods (agents.retune_eval), the per-window
 regressors it fits (agents.window_regressor, ``--fit-seeds``; anchored at the one-shot model with its margin chosen on
 val episodes, ``--val-episodes`` / ``--anchor-margin``), the one-shot model it loads (``--oneshot-model``), and
-the summary with the one-shot → per-window gap (agents.report_retune). compare.py parses and checks the arguments."""
+the summary with the one-shot → per-window gap (agents.report_retune), and the flags only these comparisons take
+(:func:`add_retune_arguments`, :func:`check_retune_flags`, :func:`check_regime_source`). compare.py parses the arguments."""
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import gymnasium as gym
 import numpy as np
 
 from agents.baselines import GridSearch, RulePolicy
+from agents.cli import existing_dir, float_range, positive_int
 from agents.evaluate import val_episodes
 from agents.plots import gain_boxplot, parameter_schedule
 from agents.report import by_method, summary_markdown, write_results_csv
@@ -32,8 +35,52 @@ from agents.window_regressor import (WINDOW_AMORTISED, WINDOW_ANCHORED, WINDOW_R
                                      WindowRegressorPolicy, WindowRegressorSettings, fit_regressor, select_margin)
 from envs import RETUNE_ID, TUNE_ID
 from envs.data.atomic_files import write_text_atomic
+from envs.episodes.config import EnvConfig
 
 ONE_STEP_ENV, RETUNE_ENV = TUNE_ID, RETUNE_ID
+
+
+def add_retune_arguments(p: argparse.ArgumentParser) -> None:
+    """compare.py's flags that only FilterRetune-v0 comparisons take (checked by :func:`check_retune_flags`)."""
+    p.add_argument("--fit-seeds", type=positive_int, default=1, metavar="K",
+                   help=f"{RETUNE_ENV} runs: fit {WINDOW_AMORTISED} K times (seeds --seed … --seed + K − 1, each on its own "
+                        f"--train-episodes train episodes), scored as {WINDOW_AMORTISED}_s<k> when K > 1")
+    p.add_argument("--oneshot-model", type=existing_dir, default=None, metavar="RUN_DIR",
+                   help=f"{RETUNE_ENV} runs: a {ONE_STEP_ENV} run scored as oneshot_learned (its action for the whole "
+                        "track); without it that row is left out")
+    p.add_argument("--anchor-margin", type=float_range(0.0), default=None, metavar="M",
+                   help=f"{RETUNE_ENV} runs with --oneshot-model: the margin of {WINDOW_ANCHORED} and {WINDOW_RESIDUAL} (predicted log-RMSE "
+                        "gain a switch away from the one-shot action must exceed), instead of choosing it on val episodes")
+    p.add_argument("--regime-informed", action="store_true",
+                   help=f"{RETUNE_ENV} with scenario=nonstationary (source sim): also fit {WINDOW_AMORTISED} told the true "
+                        f"regime schedule, scored as {WINDOW_REGIME_INFORMED}[_s<k>], and {REGIME_ORACLE}, the best action per true "
+                        "regime state chosen with the truth (agents.regime_informed: references that use the truth, for "
+                        "the share of the one-shot → per-window gap that knowing the regimes reaches)")
+
+
+def check_retune_flags(error: Callable[[str], NoReturn], args: argparse.Namespace, env_id: str) -> None:
+    """Refuse (``error``: the parser's, one line, exit 2) the FilterRetune-v0 flags in another env's comparison and
+    ``--anchor-margin`` without ``--oneshot-model``."""
+    for flag, given in (("--oneshot-model", args.oneshot_model is not None), ("--fit-seeds", args.fit_seeds != 1),
+                        ("--regime-informed", args.regime_informed)):
+        if given and env_id != RETUNE_ENV:
+            error(f"{flag}: only for runs of {RETUNE_ENV} (this one is of {env_id})")
+    if args.anchor_margin is not None and args.oneshot_model is None:
+        error(f"--anchor-margin: only with --oneshot-model (it sets {WINDOW_ANCHORED} and {WINDOW_RESIDUAL}, which are "
+              "anchored there)")
+
+
+def check_regime_source(error: Callable[[str], NoReturn], args: argparse.Namespace, config: EnvConfig) -> None:
+    """Refuse ``--regime-informed`` where episodes have no true regime schedule (anything but non-stationary sim)."""
+    if args.regime_informed and (config.source, config.scenario) != ("sim", "nonstationary"):
+        error(f"--regime-informed: needs source 'sim' with scenario=nonstationary (a true regime schedule); this "
+              f"evaluation's env has source {config.source!r}, scenario {config.scenario!r}")
+
+
+def no_run_config() -> dict[str, Any]:
+    """The stand-in for a run's config.yml without --model: a FilterRetune-v0 env with EnvConfig's defaults (changed
+    by --env-kwargs) and no trained tuner."""
+    return {"env_id": RETUNE_ENV, "env_kwargs": {}, "algo": None}
 
 
 def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneShotLearned:

@@ -25,7 +25,7 @@ CASES = [
     misuse("--env", "bboxtune/FilterRetune-v0", "--env-kwargs", "window=0", "--out", "{out}", mentions="--env-kwargs"),
     misuse("--env", "bboxtune/FilterRetune-v0", "--regime-informed", "--out", "{out}",
            mentions="--regime-informed: needs source 'sim' with scenario=nonstationary"),
-    misuse("--model", "{run}", "--regime-informed", mentions="--regime-informed: only for bboxtune/FilterRetune-v0"),
+    misuse("--model", "{run}", "--regime-informed", mentions="--regime-informed: only for runs of bboxtune/FilterRetune-v0"),
     misuse("--model", "{run}", "--env-kwargs", "track_length=3", mentions="--env-kwargs: track_length=3"),
     misuse("--model", "{run}", "--env-kwargs", "track_length:abc", mentions="--env-kwargs: track_length='abc'"),
     misuse("--model", "{run}", "--env-kwargs", "nope=1", mentions="nope"),
