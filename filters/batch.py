@@ -2,8 +2,9 @@
 filter calls as the tracks allow.
 
 Batching across frame intervals happens here: a back end exact in frame units (``IN_FRAMES``: the FIR family, KF,
-KF-CMN) runs every track at τ = 1 with its parameters converted (:meth:`filters.base.Filter.params_in_frames`, the
-one definition of the conversion: σ_w → σ_w τ², a prior's velocities × τ), so tracks of any τ share one cached
+KF-CMN, the peer box filters bytetrack_kf and sort_kf, which work per frame anyway) runs every track at τ = 1 with
+its parameters converted (:meth:`filters.base.Filter.params_in_frames`, the one definition of the conversion:
+σ_w → σ_w τ², a prior's velocities × τ), so tracks of any τ share one cached
 model and one call; the others (UKF) run at each track's τ. (A FIR filter built at another τ applies the same
 conversion inside, so that its gains are cached once for all τ.) Position estimates are the same either way (to round-off; tests/filters/
 test_batch.py). Models are the constant-velocity models of :func:`filters.constant_velocity` (cached there).
@@ -31,9 +32,10 @@ def _run_intervals(cls: type[Filter], taus: np.ndarray, params: dict[str, np.nda
 
 def candidate_positions(name: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray]) -> np.ndarray:
     """Back end ``name`` on one track ``y`` (T, M) once per candidate: ``params`` maps the back end's parameter
-    names to arrays (A,). Returns the position estimates (A, T, M)."""
+    names to arrays (A,) (none: one candidate, A = 1, e.g. ``sort_kf``, which has no parameters). Returns the
+    position estimates (A, T, M)."""
     cls = filter_class(name)
-    n = len(next(iter(params.values())))
+    n = len(next(iter(params.values()))) if params else 1
     tau_run, used = _run_intervals(cls, np.float64(tau), params)
     flt = cls(constant_velocity(float(tau_run), ndim=y.shape[-1]), **used)
     return flt.positions(np.broadcast_to(y, (n, *y.shape)))

@@ -12,7 +12,8 @@ tracks of ``--frames`` frames. Prints
 2. ``ufir`` at N = 160 (kernel form) vs the iterative per-point Algorithm 2 (:func:`filters.ufir.ufir_iterative`)
    run on ``--iter-tracks`` tracks (it costs ~N 2×2 steps per output point; its rate is per point, so the
    ratio does not depend on how many tracks it runs on), ratio of rates and max |Δ| on those tracks;
-3. frame-updates/s (tracks × frames / s) of every back end on all tracks;
+3. frame-updates/s (tracks × frames / s) of every back end on all tracks, and of the peer box filters
+   (``filters.PEER_NAMES``) beside ``kf`` on as many box tracks (those of section 4, ``--missing`` of frames missing);
 4. wide batches: every back end on ``--wide-tracks`` box tracks (cx, cy, w, h; τ = 1/30, random walks around
    200 px) of ``--wide-frames`` frames, without missing frames and with a share ``--missing`` of frames missing
    (whole boxes, independently per frame): seconds (wall and CPU) and peak RSS of each, and the ratios
@@ -194,6 +195,15 @@ def speed_sections(args: argparse.Namespace) -> None:
             flt = filters.make(name, model, **params)
             t, _ = best_time(lambda: flt.run(y), args.repeat)
             print(f"    {name:9s} {n_updates / t:>14,.0f}   ({', '.join(f'{k}={v}' for k, v in params.items())})")
+        boxes = box_tracks(args.tracks, args.frames, args.missing, args.seed)
+        boxes[..., 2:] = 20.0 + np.abs(boxes[..., 2:] - 200.0)  # sizes >= 20 px: the peers need w, h > 0
+        print(f"    box tracks ({args.tracks} x {args.frames}, {args.missing:.0%} of frames missing): the peer filters "
+              "(filters.PEER_NAMES, published defaults) beside kf, box frame-updates/s:")
+        for name in ("kf", *filters.PEER_NAMES):
+            params = backend_params(name, args.horizon) if name == "kf" else {}
+            flt = filters.make(name, filters.constant_velocity(TAU, ndim=4), **params)
+            t, _ = best_time(lambda: flt.run(boxes), args.repeat)
+            print(f"    {name:12s} {n_updates / t:>14,.0f}")
 
 
 def main(argv: list[str] | None = None) -> int:

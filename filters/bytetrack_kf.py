@@ -1,0 +1,293 @@
+"""The box Kalman filter of ByteTrack and DeepSORT ([Zhang-ByteTrack], [Wojke-DeepSORT]; both code bases share one
+``KalmanFilter``), batched over tracks, and :class:`BoxKF`, the whole-box recursion it shares with SORT's
+(:mod:`filters.sort_kf`).
+
+ByteTrack's filter, per track, with dt = 1 frame and h the track's height:
+
+* state ``[x, y, a, h, vx, vy, va, vh]`` (centre, aspect a = w / h, height, their rates per frame);
+  ``F = [[I, I], [0, I]]``, ``H = [I, 0]``;
+* start ("initiate", at the first detection m = [x, y, a, h]): mean [m, 0], P = diag(std²) with std =
+  [2σ_p h, 2σ_p h, s_a, 2σ_p h, 10σ_v h, 10σ_v h, s_ȧ, 10σ_v h];
+* "predict": Q = diag([σ_p h, σ_p h, s_a, σ_p h, σ_v h, σ_v h, s_ȧ, σ_v h]²), h the current mean height;
+* "update" (a detection): R = diag([σ_p h, σ_p h, s_m, σ_p h]²), h the predicted height;
+* a missing detection: predict only; frames before the first detection: NaN.
+
+Parameters (per track, scalars or (B,) arrays; the published values by default): ``std_weight_position`` σ_p = 1/20,
+``std_weight_velocity`` σ_v = 1/160, ``std_aspect`` s_a = 1e-2, ``std_aspect_rate`` s_ȧ = 1e-5,
+``std_aspect_measurement`` s_m = 1e-1, each within :data:`STD_RANGE`. (ByteTrack's tracker also zeroes vh of a lost
+track before predicting it; that is tracker logic outside its ``KalmanFilter`` and not modelled here.)
+
+Every block [coordinate, rate] of P stays uncoupled from the others (F, H, Q, R and P₀ are all block-diagonal), so
+the 8×8 recursion is four 2-state problems whose noise scales with the track's height: :class:`BoxKF` runs them in
+closed form, vectorised over tracks and coordinates, with a loop over frames only (the gains depend on the data
+through h: no gain sharing). Exact in frame units (``IN_FRAMES``): τ only converts the velocities to units per
+second. Output: states (B, T, 8) = (cx, cy, w = a h, h), then their rates per second (ẇ = ȧ h + a ḣ).
+``run_from`` continues from a :class:`filters.base.Carry` holding the filter's own state [x, y, a, h, rates per
+second] and its block-diagonal covariance.
+
+>>> import numpy as np, filters
+>>> f = filters.make("bytetrack_kf", filters.constant_velocity(1 / 30, ndim=4))
+>>> f.run(np.array([[50.0, 60.0, 20.0, 40.0], [np.nan] * 4, [52.0, 61.0, 22.0, 40.0]]))[:, :4].round(2)
+array([[50.  , 60.  , 20.  , 40.  ],
+       [50.  , 60.  , 20.  , 40.  ],
+       [51.85, 60.92, 20.06, 40.  ]])
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from filters.base import CHUNK_SAMPLES, Carry, Filter, block_diagonal, coordinate_blocks, not_started
+from filters.model import StateSpaceModel
+from filters.validation import check_range
+
+M = 4  # measured coordinates of a box
+STD_RANGE = (1e-12, 1e12)  # every noise weight or standard deviation of the peer filters (finite over all of it)
+SIZE_MIN = 1e-30  # a measured box's width and height at least this (and <= VALUE_MAX, as every y entry)
+_HEIGHT = np.array([1.0, 1.0, 0.0, 1.0])  # the coordinates whose noise scales with h: x, y, h
+_ASPECT = np.array([0.0, 0.0, 1.0, 0.0])  # the aspect a
+
+
+def check_std(name: str, value: object) -> np.ndarray:
+    """A noise weight or standard deviation within :data:`STD_RANGE` (scalar or (B,))."""
+    return check_range(name, value, *STD_RANGE)
+
+
+def check_boxes(Y: np.ndarray) -> None:
+    """Measured boxes (B, T, 4) (cx, cy, w, h): every row wholly NaN (no detection) or finite with w, h >= SIZE_MIN."""
+    nan = np.isnan(Y)
+    partial = nan.any(axis=-1) & ~nan.all(axis=-1)
+    if partial.any():
+        b, t = np.argwhere(partial)[0]
+        raise ValueError(f"y[{b}, {t}] = {Y[b, t].tolist()} is partly NaN; allowed: a whole box (cx, cy, w, h) or "
+                         "a row of NaN (no detection)")
+    small = Y[..., 2:] < SIZE_MIN  # False for NaN
+    if small.any():
+        b, t, k = np.argwhere(small)[0]
+        raise ValueError(f"y[{b}, {t}] has {'wh'[k]} = {Y[b, t, 2 + k].item()!r}; allowed: box sizes "
+                         f"w, h >= {SIZE_MIN:g}")
+
+
+@dataclass(frozen=True)
+class HeightNoise:
+    """The standard deviations of a :class:`BoxKF`, per coordinate and track, each affine in the height h:
+    std = slope · h + offset, as (slope, offset) pairs; ``start`` and ``process`` broadcast to (2, 4, n) (the
+    coordinates, then their rates), ``measurement`` to (4, n)."""
+
+    start: tuple[np.ndarray, np.ndarray]  # P₀, h = the first detection's height
+    process: tuple[np.ndarray, np.ndarray]  # Q, h = the current mean height
+    measurement: tuple[np.ndarray, np.ndarray]  # R, h = the predicted height
+
+
+class _Variance:
+    """The variance (slope · h + offset)² of one :class:`HeightNoise` pair, shaped (…, 4, n): computed once if the
+    slope is 0."""
+
+    def __init__(self, pair: tuple[np.ndarray, np.ndarray], shape: tuple[int, ...]) -> None:
+        self.slope, self.offset = (np.broadcast_to(a, shape) for a in pair)
+        self.fixed = None if self.slope.any() else np.square(self.offset)
+
+    def at(self, h: np.ndarray, rows: slice | np.ndarray = slice(None)) -> np.ndarray:
+        """At heights h (n,) (or of the tracks ``rows`` only)."""
+        if self.fixed is not None:
+            return self.fixed[..., rows]
+        return np.square(self.slope[..., rows] * h + self.offset[..., rows])
+
+
+# The state of n tracks is one array X (5, 4, n): per coordinate and track the mean [p, v] (v per frame) and the
+# covariance block [[P00, P01], [P01, P11]], in the order [p, v, P01, P00, P11] so that the paired steps of the
+# recursion are single slices; NaN for a track without a detection yet.
+_P, _V, _P01, _P00, _P11 = range(5)
+
+
+class BoxKF(Filter):
+    """A Kalman filter of whole boxes in the filter's own coordinates z = :meth:`_measure` (y), four uncoupled
+    [coordinate, rate] blocks with dt = 1 frame and :class:`HeightNoise`. Subclasses define the coordinates
+    (:meth:`_measure`), the noise (:meth:`_noise`) and the boxes of a state (:meth:`_to_boxes`)."""
+
+    IN_FRAMES: ClassVar[bool] = True
+    FIXED: ClassVar[tuple[int, ...]] = ()  # coordinates without a rate (SORT's aspect): rate and its variance 0
+
+    def __init__(self, model: StateSpaceModel, **params: Any) -> None:
+        if model.M != M:
+            raise ValueError(f"{self.name} filters boxes (cx, cy, w, h); the model has M={model.M}, allowed: "
+                             "filters.constant_velocity(tau, ndim=4)")
+        super().__init__(model, **params)
+
+    @abstractmethod
+    def _noise(self, params: dict[str, np.ndarray]) -> HeightNoise:
+        """The noise of tracks with the per-track parameters ``params`` (arrays (n,))."""
+
+    @abstractmethod
+    def _measure(self, Y: np.ndarray) -> np.ndarray:
+        """Boxes (T, 4, n) (cx, cy, w, h on axis 1) → the measured coordinates z (T, 4, n)."""
+
+    @abstractmethod
+    def _to_boxes(self, S: np.ndarray) -> None:
+        """States (…, 4) (the coordinates) or (…, 8) (then their rates per frame) → boxes (cx, cy, w, h) (and their
+        rates per frame), in place."""
+
+    def _before_predict(self, X: np.ndarray) -> None:
+        """Adjust the state X (5, 4, n) in place before a predict (SORT's area-rate guard); none by default."""
+
+    def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
+        return {k: check_std(k, v) for k, v in params.items()}
+
+    def run(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """States (T, 8) or (B, T, 8) of boxes ``y`` (T, 4) or (B, T, 4), NaN rows = no detection (module docstring)."""
+        return self._filter(y, u, None, positions_only=False)[0]
+
+    def positions(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """The boxes only, (T, 4) or (B, T, 4): ``run(y)[..., :4]`` without computing the rates."""
+        return self._filter(y, u, None, positions_only=True)[0]
+
+    def run_from(self, y: np.ndarray, carry: Carry | None = None,
+                 u: np.ndarray | None = None) -> tuple[np.ndarray, Carry]:
+        """As :meth:`filters.base.Filter.run_from`; the carry holds the filter's own state (module docstring)."""
+        return self._filter(y, u, carry, positions_only=False)
+
+    def _filter(self, y: np.ndarray, u: np.ndarray | None, carry: Carry | None,
+                positions_only: bool) -> tuple[np.ndarray, Carry]:
+        Y, _, per_track, batched = self._inputs(y, u)
+        check_boxes(Y)
+        n_tracks, T, _ = Y.shape
+        start = None if carry is None else self._start_state(carry, n_tracks)
+        out = np.empty((n_tracks, T, M if positions_only else 2 * M))
+        ends: list[np.ndarray] = []
+        step = max(1, CHUNK_SAMPLES // max(1, T * M))  # tracks per chunk: bounded working memory
+        for first in range(0, n_tracks if T else 0, step):
+            rows = slice(first, min(n_tracks, first + step))
+            noise = self._noise({k: v[rows] for k, v in per_track.items()})
+            X = np.full((5, M, rows.stop - rows.start), np.nan) if start is None else start[..., rows].copy()
+            z = self._measure(Y[rows].transpose(1, 2, 0))  # (T, 4, n)
+            began = np.logical_or.accumulate(~np.isnan(z[:, 0]), axis=0) | ~np.isnan(X[_P, 0])  # (T, n)
+            means = self._run_boxes(z, noise, X, positions_only)  # X: now the state after the last frame
+            states = out[rows]  # a view (n, T, 4 or 8): [coordinates, rates]
+            states.reshape(-1, T, means.shape[1], M)[...] = means.transpose(3, 0, 1, 2)
+            self._to_boxes(states)
+            states[..., M:] /= self.model.tau
+            self._check_finite(states, began, rows)
+            ends.append(X)
+        if T == 0:
+            end_carry = carry if carry is not None else not_started(n_tracks, M)
+        else:
+            end_carry = self._carry(np.concatenate(ends, axis=2) if ends else np.empty((5, M, 0)), Y[:, -1])
+        return (out if batched else out[0]), end_carry
+
+    def _run_boxes(self, z: np.ndarray, noise: HeightNoise, X: np.ndarray, positions_only: bool) -> np.ndarray:
+        """The recursion on measured coordinates ``z`` (T, 4, n) (NaN columns: no detection) from state ``X`` (5, 4, n)
+        (NaN for a track waiting for its first detection), updated in place to the state after the last frame.
+        Returns the means (T, 2, 4, n) = [p, v] ((T, 1, 4, n) = [p] if ``positions_only``)."""
+        T, _, n = z.shape
+        P_start, Q = _Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n))
+        R = _Variance(noise.measurement, (M, n))
+        detected = ~np.isnan(z[:, 0])  # (T, n)
+        z = np.where(detected[:, None], z, 0.0)  # 0 where no detection
+        gate = detected[:, None].astype(float)  # a missing detection: gain 0 (predict only)
+        gated = ~detected.all(axis=1)
+        waiting = np.isnan(X[_P, 0]) & detected.any(axis=0)
+        first = detected.argmax(axis=0)
+        starts = {int(t): np.flatnonzero(waiting & (first == t)) for t in np.unique(first[waiting])}
+        means = np.empty((T, 1 if positions_only else 2, M, n))
+        mean, P00, P11, paired, rates = X[_P:_V + 1], X[_P00], X[_P11], X[_P:_P01 + 1:2], X[_V:_P11 + 1:3]
+        for t in range(T):
+            # predict (h: the current mean height): x ← F x, P ← F P Fᵀ + Q per 2×2 block
+            self._before_predict(X)
+            q = Q.at(X[_P, 3])
+            P00 += X[_P01]  # P00 + 2 P01 + P11 = P00 + P01 + (P01 + P11)
+            paired += rates  # p += v, P01 += P11
+            P00 += X[_P01]
+            X[_P00:] += q  # P00 += q_p, P11 += q_v
+            # update (h: the predicted height): S = H P Hᵀ + R, K = P Hᵀ S⁻¹ = [K0, K1], P ← P − K S Kᵀ
+            K = X[_P01:_P00 + 1] / (P00 + R.at(X[_P, 3]))  # [K1, K0]
+            if gated[t]:
+                K *= gate[t]
+            mean += K[::-1] * (z[t] - X[_P])
+            P11 -= K[0] * X[_P01]
+            X[_P01:_P00 + 1] -= K[1] * X[_P01:_P00 + 1]  # P01, P00 times (1 − K0)
+            if t in starts:  # initiate: mean [m, 0], P₀ from the detection's height
+                rows = starts[t]
+                m = z[t][:, rows]
+                X[_P][:, rows], X[_V][:, rows], X[_P01][:, rows] = m, 0.0, 0.0
+                X[_P00:][..., rows] = P_start.at(m[3], rows)
+            means[t] = X[_P] if positions_only else mean
+        return means
+
+    def _check_finite(self, states: np.ndarray, began: np.ndarray, rows: slice) -> None:
+        """Every state (n, T, k) where a track has ``began`` (T, n) must be finite (it is within the documented ranges:
+        a non-finite one is a numerical failure, reported rather than returned)."""
+        bad = began.T & ~np.isfinite(states).all(-1)
+        if bad.any():
+            b, t = np.argwhere(bad)[0]
+            raise FloatingPointError(f"{self.name}: non-finite estimate at track {rows.start + b}, frame {t} after its "
+                                     f"start (parameters {self.params}): please report this input")
+
+    def _carry(self, X: np.ndarray, y_last: np.ndarray) -> Carry:
+        """The :class:`Carry` of state ``X`` (5, 4, n): x = [coordinates, rates per second], P its 8×8 block-diagonal
+        covariance."""
+        tau = self.model.tau
+        P01 = X[_P01].T / tau
+        blocks = np.stack([np.stack([X[_P00].T, P01], -1), np.stack([P01, X[_P11].T / tau**2], -1)], -2)
+        started = ~np.isnan(X[_P, :1].T)
+        return Carry(x=np.concatenate([X[_P].T, X[_V].T / tau], axis=1), P=block_diagonal(blocks), y_last=y_last,
+                     measured=np.repeat(started, M, axis=1))
+
+    def _start_state(self, carry: Carry, n_tracks: int) -> np.ndarray:
+        """The state X (5, 4, B) a carry holds, checked against y's batch (ValueError naming the field)."""
+        if not isinstance(carry, Carry):
+            raise ValueError(f"carry is a {type(carry).__name__}; allowed: None or a filters.base.Carry")
+        wants = {"x": (n_tracks, 2 * M), "P": (n_tracks, 2 * M, 2 * M), "y_last": (n_tracks, M),
+                 "measured": (n_tracks, M)}
+        for name, want in wants.items():
+            shape = getattr(carry, name).shape
+            if shape != want:
+                raise ValueError(f"carry.{name} has shape {shape}; allowed: {want} (B={n_tracks} tracks of y)")
+        if carry.c is not None or carry.P_c is not None:
+            raise ValueError(f"carry.c / carry.P_c are given but {self.name} has no camera states; allowed: None")
+        if np.isinf(carry.x).any() or np.isinf(carry.P).any():
+            raise ValueError("carry.x / carry.P contain ±inf; allowed: finite values (NaN: a track not started)")
+        blocks = coordinate_blocks(carry.P, M, "carry.P")  # (B, 4, 2, 2)
+        waiting = np.isnan(carry.x)
+        started = ~waiting.all(axis=1)
+        if waiting[started].any() or not np.isfinite(blocks[started]).all():
+            raise ValueError(f"carry.x / carry.P: {self.name} starts a track as a whole: a track's state must be "
+                             "finite in all 8 entries (with a finite covariance) or NaN in all (not started)")
+        fixed = list(self.FIXED)
+        if np.any(carry.x[started][:, [M + k for k in fixed]]) or np.any(blocks[started][:, fixed, 1]):
+            raise ValueError(f"carry.x / carry.P: {self.name} has no rate for coordinate(s) {fixed}; allowed: that "
+                             "rate and its covariance entries 0")
+        tau = self.model.tau
+        return np.stack([carry.x[:, :M].T, carry.x[:, M:].T * tau, blocks[..., 0, 1].T * tau, blocks[..., 0, 0].T,
+                         blocks[..., 1, 1].T * tau**2])
+
+
+class ByteTrackKF(BoxKF):
+    """ByteTrack's / DeepSORT's box Kalman filter (module docstring): parameters ``std_weight_position`` σ_p,
+    ``std_weight_velocity`` σ_v, ``std_aspect``, ``std_aspect_rate``, ``std_aspect_measurement``, per track."""
+
+    name: ClassVar[str] = "bytetrack_kf"
+    DEFAULTS: ClassVar[dict[str, Any]] = {"std_weight_position": 1 / 20, "std_weight_velocity": 1 / 160,
+                                          "std_aspect": 1e-2, "std_aspect_rate": 1e-5, "std_aspect_measurement": 1e-1}
+    PER_TRACK: ClassVar[tuple[str, ...]] = tuple(DEFAULTS)
+
+    def _noise(self, params: dict[str, np.ndarray]) -> HeightNoise:
+        def column(name: str, mask: np.ndarray) -> np.ndarray:  # (4, n): the parameter on the coordinates of mask
+            return mask[:, None] * params[name]
+
+        w_p, w_v = column("std_weight_position", _HEIGHT), column("std_weight_velocity", _HEIGHT)
+        s_a = np.stack([column("std_aspect", _ASPECT), column("std_aspect_rate", _ASPECT)])
+        return HeightNoise(start=(np.stack([2 * w_p, 10 * w_v]), s_a), process=(np.stack([w_p, w_v]), s_a),
+                           measurement=(w_p, column("std_aspect_measurement", _ASPECT)))
+
+    def _measure(self, Y: np.ndarray) -> np.ndarray:
+        return np.stack([Y[:, 0], Y[:, 1], Y[:, 2] / Y[:, 3], Y[:, 3]], axis=1)  # (x, y, a, h)
+
+    def _to_boxes(self, S: np.ndarray) -> None:
+        a, h = S[..., 2].copy(), S[..., 3]
+        if S.shape[-1] > M:
+            S[..., 6] = S[..., 6] * h + a * S[..., 7]  # ẇ = ȧ h + a ḣ
+        S[..., 2] = a * h
