@@ -54,14 +54,17 @@ class Carry:
 
     x: np.ndarray  # (B, K) posterior state at the last frame: positions (units), then velocities (units/s)
     P: np.ndarray  # (B, K, K) its covariance, block-diagonal per coordinate
-    y_last: np.ndarray  # (B, M) the last frame's measurement (units), NaN if it was missing
+    y_last: np.ndarray  # (B, M) the last finite measurement (units), NaN if the coordinate has none yet
     measured: np.ndarray  # (B, M) bool: the coordinate has had a finite measurement (kf_cmn: with a prior,
-    #                       the first one is a y-update, later ones use z_n = y_n − ψ y_{n-1})
+    #                       the first one is a y-update, later ones use z_n = y_n − ψ^{g+1} y_last)
     c: np.ndarray | None = None  # (B, n_c) ukf camera_motion only: apparent background velocity c (units/s)
     #                               of the first n_c = min(M, 2) coordinates (filters.ukf)
     P_c: np.ndarray | None = None  # (B, n_c, 3) covariance of c with [position, velocity, c] of its coordinate
+    missed: np.ndarray | None = None  # (B, M) frames after y_last's up to the last one; None → 0 (not given)
 
     def __post_init__(self) -> None:
+        if self.missed is None:
+            object.__setattr__(self, "missed", np.zeros(np.shape(self.y_last)))
         for f in fields(self):
             value = getattr(self, f.name)
             if value is not None:
@@ -96,8 +99,9 @@ class AxisCarry:
     c: np.ndarray | None = None  # (B·n_c,) camera states, track-major (the order of the camera channels)
     P_c: np.ndarray | None = None  # (B·n_c, 3)
     # the measurement history: given to the back ends; in what they return it is None (run_from fills it)
-    y_last: np.ndarray | None = None  # (C,)
+    y_last: np.ndarray | None = None  # (C,) the last finite measurement, NaN if none yet
     measured: np.ndarray | None = None  # (C,) bool
+    missed: np.ndarray | None = None  # (C,) int: frames after y_last's frame up to the last one
 
 
 class Filter(ABC):
@@ -206,8 +210,7 @@ class Filter(ABC):
             start = None if carry is None else _split_carry(carry.slice(rows), rows.stop - rows.start, M, n_c)
             axes, end = self._run_axes_from(z, params, start, u_axes)
             self._check_finite(axes, z, rows, params)
-            measured = ~np.isnan(z).all(axis=1) if start is None else start.measured | ~np.isnan(z).all(axis=1)
-            end = replace(end, y_last=z[:, -1], measured=measured)
+            end = replace(end, **measurement_history(z, start))
             states[rows] = merge_axes(axes, rows.stop - rows.start, M)
             ends.append(_merge_carry(end, rows.stop - rows.start, M))
         if T == 0:
@@ -287,6 +290,20 @@ class Filter(ABC):
         return u_axes.reshape(n_tracks * M, T)
 
 
+def measurement_history(z: np.ndarray, start: AxisCarry | None) -> dict[str, np.ndarray]:
+    """``y_last``, ``missed`` and ``measured`` (C,) after the last frame of channels ``z`` (C, T) that continue
+    ``start`` (None: not started): the last finite measurement, the frames after it, whether there has been one."""
+    C, T = z.shape
+    finite = ~np.isnan(z)
+    seen = finite.any(axis=1)
+    last = T - 1 - np.argmax(finite[:, ::-1], axis=1)  # the last finite frame (where ``seen``)
+    y_before = np.full(C, np.nan) if start is None else start.y_last
+    missed_before = np.where(np.isnan(y_before), 0, 0 if start is None else start.missed + T)
+    return {"y_last": np.where(seen, z[np.arange(C), last], y_before),
+            "missed": np.where(seen, T - 1 - last, missed_before),
+            "measured": seen if start is None else start.measured | seen}
+
+
 def not_started(n_tracks: int, M: int, n_c: int = 0) -> Carry:
     """The :class:`Carry` of ``n_tracks`` tracks that have not started (no measurement, no state yet)."""
     nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
@@ -308,7 +325,7 @@ def _split_carry(carry: Carry, n_tracks: int, M: int, n_c: int) -> AxisCarry:
         raise ValueError(f"carry is a {type(carry).__name__}; allowed: None or a filters.base.Carry")
     K = 2 * M
     wants = {"x": (n_tracks, K), "P": (n_tracks, K, K), "y_last": (n_tracks, M), "measured": (n_tracks, M),
-             "c": (n_tracks, n_c), "P_c": (n_tracks, n_c, 3)}
+             "missed": (n_tracks, M), "c": (n_tracks, n_c), "P_c": (n_tracks, n_c, 3)}
     for name, want in wants.items():
         value = getattr(carry, name)
         if name in ("c", "P_c") and n_c == 0:
@@ -330,9 +347,15 @@ def _split_carry(carry: Carry, n_tracks: int, M: int, n_c: int) -> AxisCarry:
     if np.any(measured & waiting[:, 0]):
         raise ValueError("carry.measured is True for a coordinate whose carry.x is NaN; allowed: a measured "
                          "coordinate has a finite state")
+    y_last, missed = carry.y_last.reshape(-1), carry.missed.reshape(-1)
+    if np.any(~np.isnan(y_last) & ~measured):
+        raise ValueError("carry.y_last is finite for a coordinate that carry.measured marks as not measured; "
+                         "allowed: y_last NaN until the coordinate's first finite measurement")
+    if not np.all((missed >= 0) & (missed == np.round(missed))):  # NaN fails too
+        raise ValueError("carry.missed has an entry that is not a whole number >= 0 (frames since carry.y_last)")
     c = None if carry.c is None else carry.c.reshape(-1)
     P_c = None if carry.P_c is None else carry.P_c.reshape(-1, 3)
-    return AxisCarry(x=x, P=P, c=c, P_c=P_c, y_last=carry.y_last.reshape(-1), measured=measured)
+    return AxisCarry(x=x, P=P, c=c, P_c=P_c, y_last=y_last, measured=measured, missed=missed.astype(np.int64))
 
 
 def _merge_carry(end: AxisCarry, n_tracks: int, M: int) -> Carry:
@@ -342,7 +365,7 @@ def _merge_carry(end: AxisCarry, n_tracks: int, M: int) -> Carry:
     c = None if end.c is None else end.c.reshape(n_tracks, -1)
     P_c = None if end.P_c is None else end.P_c.reshape(n_tracks, -1, 3)
     return Carry(x=x, P=P, y_last=end.y_last.reshape(n_tracks, M), measured=end.measured.reshape(n_tracks, M),
-                 c=c, P_c=P_c)
+                 c=c, P_c=P_c, missed=end.missed.reshape(n_tracks, M))
 
 
 def block_diagonal(blocks: np.ndarray) -> np.ndarray:

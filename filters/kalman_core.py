@@ -8,10 +8,12 @@ later). Each frame's predict + update is then one affine map per channel,
 
     x_n = M_n x_{n-1} + g_n m_n,                     M_n = (I − K_n D_n) A_n,  g_n = (I − K_n D_n) Λ_n + K_n
 
-(from x⁻ = A x_{n-1} + Λ m_n and x_n = x⁻ + K (m_n − D x⁻)), applied to all channels at once; only the time
-loop is Python — for a few rows (tunings) a loop over blocks of 16 frames, each one matrix product
-(:func:`_affine_blocks`). ``m_n`` is the scalar measurement a frame uses (``y_n``, or ``z_n = y_n − ψ y_{n-1}`` for
-KF-CMN), ``D`` its observation row, ``A``/``Λ`` the (de-correlated) transition and input gain.
+(from x⁻ = A x_{n-1} + Λ m_n and x_n = x⁻ + K (m_n − D x⁻), K = (P⁻ Dᵀ + M) S⁻¹ with M the covariance of
+the predict's noise with the measurement noise: 0 but for KF-CMN across gaps), applied to all channels at once; only
+the time loop is Python — for a few rows (tunings) a loop over blocks of 16 frames, each one matrix product
+(:func:`_affine_blocks`). ``m_n`` is the scalar measurement a frame uses (``y_n``, or for KF-CMN
+``z_n = y_n − ψ^{g+1} y_m``, y_m the last finite measurement, g frames missing between), ``D`` its observation row,
+``A``/``Λ`` the (de-correlated) transition and input gain.
 
 Frame kinds (per channel and frame):
 
@@ -20,6 +22,9 @@ Frame kinds (per channel and frame):
 * ``PREDICT``— no usable measurement: x = F x, P = F P Fᵀ + Q (missing data).
 * ``UPDATE_Y``— predict, then a standard update on y_n (D = H).
 * ``UPDATE_Z``— KF-CMN: de-correlated predict + update on the differenced z_n ([Shmaliy-CMN] Algorithm 1).
+* ``UPDATE_Z + i`` — KF-CMN after the i-th gap length of the call (:func:`filters.kf_cmn.differenced_kinds`):
+  predict, then the time-correlated update (M ≠ 0) on z_n = y_n − ψ^{g+1} y_m. The kind axis of
+  :class:`StepTables` has an entry per kind; kinds are int8 (int32 beyond 123 gap lengths in one call).
 
 A continued run (:meth:`filters.base.Filter.run_from`) starts a channel from its carried posterior state and
 covariance (a prior for frame 0) and hands back the covariance at the last frame: the last P of its row's
@@ -37,8 +42,7 @@ import numpy as np
 from filters.base import AxisCarry, split_covariance, split_state
 from filters.validation import VALUE_MAX, VARIANCE_MAX, check_prior_scale
 
-WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)
-N_KINDS = 5
+WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)  # UPDATE_Z + i: KF-CMN over the i-th gap length
 
 # Without a prior, the velocity starts at 0 with std VELOCITY_PRIOR_SCALE · σ_pos / τ: a million times the
 # variance of the two-point velocity estimate, so the second measurement fixes the velocity (prior weight
@@ -52,39 +56,39 @@ BLOCK_ROWS = 8
 
 @dataclass(frozen=True)
 class StepTables:
-    """Per frame kind and row (kind first, row G last): x⁻ = A x + Λ m, update with row D, variance R."""
+    """Per frame kind and row (kind first, row G last): x⁻ = A x + Λ m, update with row D, variance R, and the
+    covariance M of the predict's noise with the measurement noise (the time-correlated form)."""
 
-    A: np.ndarray  # (5, 2, 2, G) transition used by the predict
-    Q: np.ndarray  # (5, 2, 2, G) process noise covariance of that predict
-    Lam: np.ndarray  # (5, 2, G) input gain on the measurement (Λ of [Shmaliy-CMN] eq. 10; 0 for a plain KF)
-    D: np.ndarray  # (5, 2, G) observation row (0 for PREDICT: gain 0, covariance unchanged)
-    R: np.ndarray  # (5, G) measurement noise variance (1 where unused)
+    A: np.ndarray  # (kinds, 2, 2, G) transition used by the predict
+    Q: np.ndarray  # (kinds, 2, 2, G) process noise covariance of that predict
+    Lam: np.ndarray  # (kinds, 2, G) input gain on the measurement (Λ of [Shmaliy-CMN] eq. 10; 0 for a plain KF)
+    D: np.ndarray  # (kinds, 2, G) observation row (0 for PREDICT: gain 0, covariance unchanged)
+    R: np.ndarray  # (kinds, G) measurement noise variance (1 where unused)
+    M: np.ndarray  # (kinds, 2, G) noise cross-covariance (filterpy ``update_correlated``'s M; 0 but KF-CMN's gaps)
 
 
-def plain_tables(F: np.ndarray, Q: np.ndarray, R_y: np.ndarray, H: np.ndarray) -> StepTables:
-    """Tables for a standard KF: every kind predicts with (F, Q); UPDATE_Y updates with (H, R_y).
-
-    ``Q`` (2, 2, G), ``R_y`` (G,); the UPDATE_Z entries equal the UPDATE_Y ones until a caller replaces them."""
+def plain_tables(F: np.ndarray, Q: np.ndarray, R_y: np.ndarray, H: np.ndarray,
+                 n_kinds: int = UPDATE_Z) -> StepTables:
+    """Tables of ``n_kinds`` kinds for a standard KF: every kind predicts with (F, Q) (Λ = 0, M = 0); UPDATE_Y
+    updates with (H, R_y), the others not (D = 0) until a caller (KF-CMN: its UPDATE_Z kinds) fills them in.
+    ``Q`` (2, 2, G), ``R_y`` (G,)."""
     G = len(R_y)
-    A = np.broadcast_to(F[:, :, None], (N_KINDS, 2, 2, G)).copy()
-    Qk = np.broadcast_to(Q, (N_KINDS, 2, 2, G)).copy()
-    Lam = np.zeros((N_KINDS, 2, G))
-    D = np.zeros((N_KINDS, 2, G))
-    D[[UPDATE_Y, UPDATE_Z]] = H[:, None]
-    R = np.ones((N_KINDS, G))
-    R[[UPDATE_Y, UPDATE_Z]] = R_y
-    return StepTables(A=A, Q=Qk, Lam=Lam, D=D, R=R)
+    A = np.broadcast_to(F[:, :, None], (n_kinds, 2, 2, G)).copy()
+    Qk = np.broadcast_to(Q, (n_kinds, 2, 2, G)).copy()
+    D = np.zeros((n_kinds, 2, G))
+    D[UPDATE_Y] = H[:, None]
+    R = np.ones((n_kinds, G))
+    R[UPDATE_Y] = R_y
+    return StepTables(A=A, Q=Qk, Lam=np.zeros((n_kinds, 2, G)), D=D, R=R, M=np.zeros((n_kinds, 2, G)))
 
 
-def frame_kinds(finite: np.ndarray, prior: bool | np.ndarray, differenced: bool = False,
-                measured: np.ndarray | None = None, finite_before: np.ndarray | None = None) -> np.ndarray:
-    """Kind of every frame (C, T) from the finite-measurement mask (C, T).
+def frame_kinds(finite: np.ndarray, prior: bool | np.ndarray, measured: np.ndarray | None = None) -> np.ndarray:
+    """Kind of every frame (C, T), int8, from the finite-measurement mask (C, T).
 
     The first finite measurement is a standard update (``prior``, bool or per channel (C,)) or the
-    initialisation (no prior); later finite frames update on y (``differenced=False``) or, when y_{n-1} is
-    finite too, on the differenced z_n (``differenced=True``; without y_{n-1} there is no z_n and the frame is
-    predict-only). A continued run (``Filter.run_from``) passes ``measured`` (C,): channels whose first finite
-    measurement lies before frame 0, and ``finite_before`` (C,): whether the carried y_{-1} is finite."""
+    initialisation (no prior); later finite frames update on y (KF-CMN turns those with an earlier finite y into
+    UPDATE_Z kinds: :func:`filters.kf_cmn.differenced_kinds`). A continued run (``Filter.run_from``) passes
+    ``measured`` (C,): channels whose first finite measurement lies before frame 0."""
     C, T = finite.shape
     frames = np.arange(T)
     first_index = np.where(finite.any(axis=1), np.argmax(finite, axis=1), T)
@@ -92,13 +96,7 @@ def frame_kinds(finite: np.ndarray, prior: bool | np.ndarray, differenced: bool 
         first_index = np.where(measured, -1, first_index)
     first = frames == first_index[:, None]
     kinds = np.full(finite.shape, PREDICT, dtype=np.int8)
-    if differenced:
-        previous = np.zeros_like(finite)
-        previous[:, 0] = False if finite_before is None else finite_before
-        previous[:, 1:] = finite[:, :-1]
-        kinds[finite & previous] = UPDATE_Z
-    else:
-        kinds[finite & ~first] = UPDATE_Y
+    kinds[finite & ~first] = UPDATE_Y
     prior = np.broadcast_to(prior, (C,))[:, None]
     kinds[first & prior] = UPDATE_Y
     kinds[first & ~prior] = INIT
@@ -142,30 +140,35 @@ def gain_recursion(kinds: np.ndarray, tables: StepTables,
     floats, several times faster than numpy calls on length-1 arrays — the env filters one parameter set at a
     time). Stops early once all rows are in steady state (P_n = P_{n−1} bit for bit, no kind change later)."""
     G, T = kinds.shape
-    flat = np.concatenate([tables.A.reshape(N_KINDS, 4, G), tables.Q.reshape(N_KINDS, 4, G), tables.Lam, tables.D,
+    n_kinds = len(tables.R)
+    flat = np.concatenate([tables.A.reshape(n_kinds, 4, G), tables.Q.reshape(n_kinds, 4, G), tables.Lam, tables.D,
                            tables.R[:, None]], axis=1)  # (kind, 13 entries, row)
+    correlated = np.any(tables.M != 0.0, axis=(1, 2))  # kinds with a noise cross-covariance (KF-CMN's gaps)
     coef = np.empty((T, 6, G))
     settled = np.all(kinds == kinds[:, -1:], axis=1)
     settled_from = np.where(settled, 0, T - np.argmax(kinds[:, ::-1] != kinds[:, -1:], axis=1)).max()
     start = tuple(P_start.reshape(4, G))
     if G == 1:  # Python floats
-        table = [tuple(flat[k, :, 0].tolist()) for k in range(N_KINDS)]
+        table = [tuple(entries) for entries in flat[:, :, 0].tolist()]
+        cross = [tuple(M) if c else None for M, c in zip(tables.M[:, :, 0].tolist(), correlated)]
         start, kinds_n, rows = tuple(float(v[0]) for v in start), kinds[0].tolist(), None
     else:
         uniform = np.all(kinds == kinds[:1], axis=0)  # frames where every row has the same kind
+        with_cross = np.any(correlated[kinds], axis=0)  # frames where some row has a cross-covariance
         resets = np.any(kinds <= INIT, axis=0)  # frames where some row waits or initialises
         rows = np.arange(G)
     P = start
     for n in range(T):
         if rows is None:
             k = kinds_n[n]
-            P_new, row = joseph_step(table[k], P)
+            P_new, row = joseph_step(table[k], P, cross[k])
             if k <= INIT:  # WAIT / INIT: x = [m, 0] (INIT) or 0 (WAIT), covariance back to the start one
                 P_new, row = start, (0.0, 0.0, 0.0, 0.0, 1.0 if k == INIT else 0.0, 0.0)
             coef[n, :, 0] = row
         else:
             k = kinds[:, n]
-            P_new, row = joseph_step(tuple(flat[k[0]] if uniform[n] else flat[k, :, rows].T), P)
+            M = tuple(tables.M[k[0]] if uniform[n] else tables.M[k, :, rows].T) if with_cross[n] else None
+            P_new, row = joseph_step(tuple(flat[k[0]] if uniform[n] else flat[k, :, rows].T), P, M)
             coef[n] = row
             if resets[n]:
                 reset = k <= INIT
@@ -180,10 +183,12 @@ def gain_recursion(kinds: np.ndarray, tables: StepTables,
     return coef, T, np.reshape(np.array(P), (2, 2, G))
 
 
-def joseph_step(t: tuple, P: tuple) -> tuple[tuple, tuple]:
+def joseph_step(t: tuple, P: tuple, M: tuple | None = None) -> tuple[tuple, tuple]:
     """One frame of [Shmaliy-CMN] Algorithm 1 on the entries of 2×2 matrices (Python floats or arrays over rows):
     table entries ``t`` = (A row-major, Q row-major, Λ, D, R) and the previous posterior ``P`` (row-major) →
-    the new posterior (Joseph form) and the affine coefficients [M = (I − K D) A row-major, g = (I − K D) Λ + K]."""
+    the new posterior (Joseph form) and the affine coefficients [(I − K D) A row-major, g = (I − K D) Λ + K].
+    ``M`` = (M0, M1), the covariance of the predict's noise with the measurement noise, makes it the time-correlated
+    update (KF-CMN across a gap: docs/notes/kf-cmn-gaps.md, eqs. G6–G7); None: 0 (no extra work)."""
     a00, a01, a10, a11, q00, q01, q10, q11, l0, l1, d0, d1, r = t
     p00, p01, p10, p11 = P
     # P⁻ = A P Aᵀ + Q (Alg. 1 line 5)
@@ -192,14 +197,23 @@ def joseph_step(t: tuple, P: tuple) -> tuple[tuple, tuple]:
     m10 = (a10 * p00 * a00 + a10 * p01 * a01) + (a11 * p10 * a00 + a11 * p11 * a01) + q10
     m11 = (a10 * p00 * a10 + a10 * p01 * a11) + (a11 * p10 * a10 + a11 * p11 * a11) + q11
     pd0, pd1 = m00 * d0 + m01 * d1, m10 * d0 + m11 * d1
-    S = d0 * pd0 + d1 * pd1 + r  # S = D P⁻ Dᵀ + R (line 6)
-    k0, k1 = pd0 / S, pd1 / S  # K = P⁻ Dᵀ S⁻¹ (line 7)
+    if M is None:
+        S = d0 * pd0 + d1 * pd1 + r  # S = D P⁻ Dᵀ + R (line 6)
+        k0, k1 = pd0 / S, pd1 / S  # K = P⁻ Dᵀ S⁻¹ (line 7)
+    else:
+        c0, c1 = M
+        S = d0 * pd0 + d1 * pd1 + 2.0 * (d0 * c0 + d1 * c1) + r  # S = D P⁻ Dᵀ + D M + Mᵀ Dᵀ + R (G6)
+        k0, k1 = (pd0 + c0) / S, (pd1 + c1) / S  # K = (P⁻ Dᵀ + M) S⁻¹ (G6)
     i00, i01, i10, i11 = 1.0 - k0 * d0, 0.0 - k0 * d1, 0.0 - k1 * d0, 1.0 - k1 * d1  # I − K D
     # Joseph form (I − KD) P⁻ (I − KD)ᵀ + K R Kᵀ (= line 10 for the optimal K)
     n00 = (i00 * m00 * i00 + i00 * m01 * i01) + (i01 * m10 * i00 + i01 * m11 * i01) + r * k0 * k0
     n01 = (i00 * m00 * i10 + i00 * m01 * i11) + (i01 * m10 * i10 + i01 * m11 * i11) + r * k0 * k1
     n10 = (i10 * m00 * i00 + i10 * m01 * i01) + (i11 * m10 * i00 + i11 * m11 * i01) + r * k1 * k0
     n11 = (i10 * m00 * i10 + i10 * m01 * i11) + (i11 * m10 * i10 + i11 * m11 * i11) + r * k1 * k1
+    if M is not None:  # − (I − KD) M Kᵀ − K Mᵀ (I − KD)ᵀ (G7)
+        u0, u1 = i00 * c0 + i01 * c1, i10 * c0 + i11 * c1
+        n00, n01 = n00 - 2.0 * u0 * k0, n01 - (u0 * k1 + k0 * u1)
+        n10, n11 = n10 - (u1 * k0 + k1 * u0), n11 - 2.0 * u1 * k1
     row = (i00 * a00 + i01 * a10, i00 * a01 + i01 * a11, i10 * a00 + i11 * a10, i10 * a01 + i11 * a11,
            i00 * l0 + i01 * l1 + k0, i10 * l0 + i11 * l1 + k1)
     return (n00, n01, n10, n11), row

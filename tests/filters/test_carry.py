@@ -64,7 +64,7 @@ def assert_same(a: np.ndarray, b: np.ndarray, tol: float = 1e-12) -> None:
 
 def assert_same_carry(a: Carry, b: Carry, tol: float = 1e-12) -> None:
     np.testing.assert_array_equal(a.measured, b.measured)
-    for name in ("x", "P", "y_last", "c", "P_c"):
+    for name in ("x", "P", "y_last", "missed", "c", "P_c"):
         if getattr(b, name) is None:
             assert getattr(a, name) is None
         else:
@@ -137,21 +137,24 @@ def kf_switch_reference(y: np.ndarray, t: int, before: dict, after: dict, x0: np
 def cmn_switch_reference(y: np.ndarray, t: int, before: dict, after: dict, x0: np.ndarray,
                          P0: np.ndarray) -> np.ndarray:
     """filterpy time-correlated KF-CMN (as tests/filters/test_kf_cmn.py) with the parameters switched at
-    frame t: from t on Q, Γ, D, R̄ and z_n = y_n − ψ y_{n-1} use ``after``'s σ_w, σ_v, ψ."""
+    frame t: from t on Q and the gap-spanning z_n = y_n − ψ^{g+1} y_m with its Γ, D, R̄, M use ``after``'s σ_w, σ_v,
+    ψ (also for a z whose y_m lies before t: the frames before t were predicted with ``before``'s Q)."""
     kf = KalmanFilter(dim_x=2, dim_z=1)
     kf.x, kf.P = x0.copy(), P0.copy()
-    out = []
+    out, last = [], None
     for n in range(len(y)):
         p = before if n < t else after
-        m = cmn_matrices(p["sigma_w"], p["sigma_v"], p["psi"])
+        m = cmn_matrices(p["sigma_w"], p["sigma_v"], p["psi"], 0 if last is None else n - last - 1)
         kf.F, kf.Q, kf.M = m["F"], m["Q"], m["M"]
         kf.predict()
-        if n == 0:
-            kf.update(y[0], R=np.eye(1) * p["sigma_v"] ** 2 / (1 - p["psi"] ** 2), H=m["H"])
-        elif np.isnan(y[n]) or np.isnan(y[n - 1]):
+        if np.isnan(y[n]):
             kf.update(None)
+        elif last is None:
+            kf.update(y[n], R=np.eye(1) * p["sigma_v"] ** 2 / (1 - p["psi"] ** 2), H=m["H"])
         else:
-            kf.update_correlated(np.array([y[n] - p["psi"] * y[n - 1]]), R=m["R_bar"], H=m["D"])
+            z = y[n] - p["psi"] ** (n - last) * y[last]
+            kf.update_correlated(np.array([z]), R=m["R_bar"], H=m["D"])
+        last = last if np.isnan(y[n]) else n
         out.append(kf.x.copy())
     return np.array(out)
 
@@ -160,7 +163,7 @@ BEFORE = {"sigma_w": 50.0, "sigma_v": 4.0, "psi": 0.6}
 AFTER = {"sigma_w": 5.0, "sigma_v": 9.0, "psi": 0.9}
 
 
-@pytest.mark.parametrize("t", [100, 150, 151])  # y[149] is missing: at t = 150 there is no z at the new start
+@pytest.mark.parametrize("t", [100, 150, 151, 201])  # y[149], y[200:202] missing: z spans the switch at 150, 201
 @pytest.mark.parametrize("name", ["kf", "kf_cmn"])
 def test_parameter_change_matches_switching_reference(name: str, t: int) -> None:
     y = simulate(np.random.default_rng(2), 300, 1, 50.0, 4.0)

@@ -1,4 +1,5 @@
-"""The one-row Python-float gain recursion equals the batched numpy recursion to rounding."""
+"""The one-row Python-float gain recursion equals the batched numpy recursion to rounding (with KF-CMN's
+gap-length kinds), blocks of frames equal the frame-by-frame affine recursion, frame units."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import pytest
 
 import filters
 from filters import kalman_core as kc
-from filters.kf_cmn import cmn_tables
+from filters.kf_cmn import cmn_tables, differenced_kinds
 
 
 @pytest.mark.parametrize("psi", [0.0, 0.6, 0.95])
@@ -16,13 +17,17 @@ def test_one_row_recursion_equals_batched(psi: float) -> None:
     rng = np.random.default_rng(int(psi * 100))
     finite = rng.random((2, 300)) > 0.1
     finite[:, :3] = False  # WAIT frames before the first measurement, then INIT
-    kinds = kc.frame_kinds(finite, prior=False, differenced=psi > 0)
+    finite[1, 100:140] = False  # a long gap besides the short ones
+    z = np.where(finite, 1.0, np.nan)
+    kinds, gaps, _ = differenced_kinds(kc.frame_kinds(finite, prior=False), z, finite, np.full(2, np.nan),
+                                       np.zeros(2, np.int64), np.full(2, psi))
+    assert gaps[0] == 0 and gaps.max() >= 40 and kinds.max() == kc.UPDATE_Z + len(gaps) - 1
     params = np.array([[50.0, 4.0, psi], [50.0, 4.0, psi]])
-    tables = cmn_tables(axis, params)
+    tables = cmn_tables(axis, params, gaps)
     P_start = np.broadcast_to(np.diag([16.0, 1e8])[:, :, None], (2, 2, 2)).copy()
     coef_b, steady_b, P_b = kc.gain_recursion(kinds, tables, P_start)  # G = 2: batched path
     for g in range(2):
-        one = kc.StepTables(*(t[..., g:g + 1] for t in (tables.A, tables.Q, tables.Lam, tables.D, tables.R)))
+        one = kc.StepTables(*(t[..., g:g + 1] for t in (tables.A, tables.Q, tables.Lam, tables.D, tables.R, tables.M)))
         coef_1, steady_1, P_1 = kc.gain_recursion(kinds[g:g + 1], one, P_start[:, :, g:g + 1])
         stop = min(steady_1, steady_b)
         np.testing.assert_allclose(coef_1[:stop + 1, :, 0], coef_b[:stop + 1, :, g], rtol=1e-13, atol=1e-15)

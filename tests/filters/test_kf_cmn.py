@@ -1,5 +1,6 @@
 """KF-CMN back end ([Shmaliy-CMN] Algorithm 1): ψ = 0 is the KF, agreement with the time-correlated form
-(filterpy ``update_correlated``) and with the notes' alternative de-correlated form, batching, bad input."""
+(filterpy ``update_correlated``, across gaps with the gap-spanning difference of docs/notes/kf-cmn-gaps.md) and with
+the notes' alternative de-correlated form, batching, bad input. More on gaps: tests/filters/test_cmn_gaps.py."""
 
 from __future__ import annotations
 
@@ -29,30 +30,40 @@ def simulate_cmn(rng: np.random.Generator, T: int, sigma_w: float, sigma_v: floa
     return truth, truth + v
 
 
-def cmn_matrices(sigma_w: float, sigma_v: float, psi: float) -> dict[str, np.ndarray]:
+def cmn_matrices(sigma_w: float, sigma_v: float, psi: float, gap: int = 0) -> dict[str, np.ndarray]:
+    """The time-correlated model of z_n = y_n − ψ^{g+1} y_m, g = ``gap`` frames missing between, by explicit sums:
+    x_n = F^{g+1} x_m + w_g, Q_g = Σ_{j<=g} F^j Q F^jᵀ, Γ = ψ^{g+1} H F^{−(g+1)}, v̄ = Γ w_g + Σ_{k<=g} ψ^k ξ_{n−k}."""
     F, H = AXIS.F, AXIS.H
     Q = sigma_w**2 * AXIS.B @ AXIS.B.T
-    Gamma = psi * H @ np.linalg.inv(F)
-    M = Q @ Gamma.T  # E{(B w_n) v̄_nᵀ}
-    return {"F": F, "H": H, "Q": Q, "D": H - Gamma, "M": M, "R_bar": Gamma @ Q @ Gamma.T + sigma_v**2}
+    Q_g = sum(np.linalg.matrix_power(F, j) @ Q @ np.linalg.matrix_power(F, j).T for j in range(gap + 1))
+    Gamma = psi ** (gap + 1) * H @ np.linalg.inv(np.linalg.matrix_power(F, gap + 1))
+    var_e = sigma_v**2 * sum(psi ** (2 * k) for k in range(gap + 1))
+    M = Q_g @ Gamma.T  # E{w_g v̄_nᵀ}
+    return {"F": F, "H": H, "Q": Q, "D": H - Gamma, "M": M, "R_bar": Gamma @ Q_g @ Gamma.T + var_e}
 
 
-def time_correlated(y: np.ndarray, sigma_w: float, sigma_v: float, psi: float) -> np.ndarray:
-    """filterpy: frame 0 a standard update with var(v) = σ²/(1−ψ²); then update_correlated on z_n
-    (H = D, R = R̄, M = Q Γᵀ); predict-only where z_n is missing."""
-    m = cmn_matrices(sigma_w, sigma_v, psi)
+def time_correlated(y: np.ndarray, sigma_w: float, sigma_v: float, psi: float, x0: np.ndarray = X0,
+                    P0: np.ndarray = P0) -> np.ndarray:
+    """filterpy: the first finite y a standard update with var(v) = σ²/(1−ψ²); every later finite y_n
+    update_correlated on z_n = y_n − ψ^{g+1} y_m, y_m the last finite y, g frames missing between (H = D, R = R̄,
+    M = Q_g Γᵀ of :func:`cmn_matrices`); predict-only where y_n is missing."""
     kf = KalmanFilter(dim_x=2, dim_z=1)
-    kf.F, kf.Q, kf.M = m["F"], m["Q"], m["M"]
-    kf.x, kf.P = X0.copy(), P0.copy()
-    out = []
+    m = cmn_matrices(sigma_w, sigma_v, psi)
+    kf.F, kf.Q = m["F"], m["Q"]
+    kf.x, kf.P = x0.copy(), P0.copy()
+    out, last = [], None
     for n in range(len(y)):
         kf.predict()
-        if n == 0:
-            kf.update(y[0], R=np.eye(1) * sigma_v**2 / (1 - psi**2), H=m["H"])
-        elif np.isnan(y[n]) or np.isnan(y[n - 1]):
+        if np.isnan(y[n]):
             kf.update(None)
+        elif last is None:
+            kf.update(y[n], R=np.eye(1) * sigma_v**2 / (1 - psi**2), H=m["H"])
         else:
-            kf.update_correlated(np.array([y[n] - psi * y[n - 1]]), R=m["R_bar"], H=m["D"])
+            g = n - last - 1
+            step = cmn_matrices(sigma_w, sigma_v, psi, g)
+            kf.M = step["M"]
+            kf.update_correlated(np.array([y[n] - psi ** (g + 1) * y[last]]), R=step["R_bar"], H=step["D"])
+        last = last if np.isnan(y[n]) else n
         out.append(kf.x.copy())
     return np.array(out)
 
@@ -94,7 +105,7 @@ def test_equals_time_correlated_and_notes_decorrelated_form(psi: float) -> None:
 def test_missing_data_matches_time_correlated_form() -> None:
     rng = np.random.default_rng(7)
     _, y = simulate_cmn(rng, 600, 30.0, 3.0, 0.7)
-    y[[4, 5, 6, 100, 300, 301]] = np.nan
+    y[[0, 4, 5, 6, 100, 300, 301]] = np.nan
     ours = filters.make("kf_cmn", filters.constant_velocity(TAU), sigma_w=30.0, sigma_v=3.0, psi=0.7,
                         x0=X0, P0=P0).run(y[:, None])
     assert_rel(ours, time_correlated(y, 30.0, 3.0, 0.7), 1e-12)
@@ -105,6 +116,7 @@ def test_psi_zero_is_bit_identical_to_kf() -> None:
     model = filters.constant_velocity(TAU, ndim=4)
     y = simulate(rng, 500, 4, 20.0, 2.0, B=3)
     y[1, :3] = np.nan  # late start (no prior)
+    y[0, 40:47] = y[2, 100:101, 2] = y[1, 300:330, 1:3] = np.nan  # gaps: the first y after each is used
     sw, sv = np.array([1.0, 20.0, 300.0]), np.array([2.0, 0.3, 5.0])
     kf = filters.make("kf", model, sigma_w=sw, sigma_v=sv).run(y)
     cmn = filters.make("kf_cmn", model, sigma_w=sw, sigma_v=sv, psi=0.0).run(y)
