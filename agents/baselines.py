@@ -14,6 +14,10 @@ read the episode through ``env.unwrapped`` (``episode``, ``action_map``, ``score
 | ``oracle_auc`` / ``oracle_rmse`` | the same search maximising success AUC / minimising RMSE (the other metric's ceiling) | yes |
 | ``global``        | one action for every episode, tuned with Optuna TPE on train episodes | no             |
 | ``amortised``     | a regressor from the observation to the oracle's action, fitted on train episodes | no   |
+
+The σ rules set ψ, N, σ_w, σ_v (``envs.episodes.actions.SIGMA_PARAMETERS``): a back end with other parameters
+(``bytetrack_kf``, whose noise weights are relative to the box height; :func:`sets_sigma_rule`) has none, and
+they refuse its actions (``ValueError``); its ``rule`` is stock ByteTrack.
 """
 
 from __future__ import annotations
@@ -33,12 +37,18 @@ from sklearn.preprocessing import StandardScaler
 from tqdm import tqdm
 
 from agents.episodes import EpisodeBank, ScoreFn, nominal_action
-from envs.episodes.actions import ActionMap, Nominal
+from envs.episodes.actions import SIGMA_PARAMETERS, ActionMap, Nominal, parameter_family
 from envs.episodes.episode import Episode
 from envs.episodes.features import estimate_sigmas
 from filters.horizon import rule_horizon
 
 CMN_BACKENDS = frozenset({"kf_cmn", "ufir_cmn"})  # back ends whose sigma_v is σ_ξ of the CMN
+
+
+def sets_sigma_rule(backend: str) -> bool:
+    """Whether the σ rules (rule_est_sigma, rule_true_sigma) apply to ``backend``: its parameters are ψ, N, σ_w, σ_v
+    (``envs.episodes.actions.SIGMA_PARAMETERS``), not bytetrack_kf's weights."""
+    return parameter_family(backend) == SIGMA_PARAMETERS
 
 
 class Policy(ABC):
@@ -93,7 +103,12 @@ def _clipped_action(amap: ActionMap, nominal: Nominal, params: dict[str, float])
 
 def _rule_action(ep: Episode, amap: ActionMap, psi: float, sigma_w: float, sigma_v: float) -> np.ndarray:
     """The rule's action for given ψ, σ_w, σ_v: N = round(N_opt(σ_v, σ_w, τ)) within [K, N_max]; when the
-    action does not set σ_v (ratio-only back ends) σ_w is scaled so that σ_w/σ_v is the intended ratio."""
+    action does not set σ_v (ratio-only back ends) σ_w is scaled so that σ_w/σ_v is the intended ratio. An action
+    that tunes anything else (``bytetrack_kf``'s weights) raises ``ValueError``."""
+    other = [p for p in amap.tune if p not in SIGMA_PARAMETERS]
+    if other:
+        raise ValueError(f"the σ rules set {SIGMA_PARAMETERS}; this env tunes {other} (bytetrack_kf's noise weights "
+                         "have no σ rule: its rule is the stock filter, 'rule')")
     nominal = ep.nominal
     horizon = rule_horizon(sigma_v, sigma_w, ep.tau, amap.K, max_horizon=amap.horizon_max)
     if "sigma_v" not in amap.tune:

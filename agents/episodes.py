@@ -26,8 +26,7 @@ ScoreFn = Callable[[np.ndarray], dict[str, np.ndarray]]  # actions (A, d) -> {"r
 
 def nominal_action(action_map: ActionMap, nominal: Nominal) -> np.ndarray:
     """The action (d,) that sets the nominal parameters (the fixed rule) exactly."""
-    params = {"psi": nominal.psi, "horizon": nominal.horizon, "sigma_w": nominal.sigma_w, "sigma_v": nominal.sigma_v}
-    return action_map.to_actions(params, nominal)[0]
+    return action_map.to_actions(nominal.as_params(), nominal)[0]
 
 
 def rule_action(env: gym.Env) -> np.ndarray:

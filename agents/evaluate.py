@@ -28,11 +28,12 @@ from tqdm import tqdm
 
 from agents.adaptive import SageHusaConfig, sage_husa_positions
 from agents.baselines import (AmortisedPolicy, EpisodePolicy, GlobalPolicy, GridSearch, OraclePolicy, Policy,
-                              RuleEstimatedSigmaPolicy, RulePolicy, RuleTrueSigmaPolicy)
+                              RuleEstimatedSigmaPolicy, RulePolicy, RuleTrueSigmaPolicy, sets_sigma_rule)
 from agents.episodes import EpisodeBank
 from agents.splits import EpisodeSpec, otb_episodes, split_seeds, train_seeds
 from envs.data import metrics
 from envs.data.boxes import cxcywh_to_xywh
+from envs.episodes.actions import parameter_family
 from envs.episodes.scoring import score_estimates
 
 RAW = "raw"
@@ -65,14 +66,17 @@ def fit_baselines(env: gym.Env, oracle: OraclePolicy, settings: BaselineSettings
     return [glob, amortised]
 
 
-def standard_policies(source: str, search: GridSearch, reward: str = "rmse") -> list[Policy]:
-    """The training-free policies: rule, rule with estimated σ, rule with true σ (sim only), the oracle of the
+def standard_policies(source: str, search: GridSearch, reward: str = "rmse", *, backend: str) -> list[Policy]:
+    """The training-free policies: rule, rule with estimated σ, rule with true σ (sim only; both σ rules only for
+    back ends they apply to, ``agents.baselines.sets_sigma_rule``: not ``bytetrack_kf``), the oracle of the
     env's ``reward`` (named ``oracle``) and the oracle of the other metric (``oracle_auc``, maximising success AUC,
     when the reward is RMSE; else ``oracle_rmse``); both searches (``search``) are anchored at the rules' actions,
     so that each is never worse than any rule on its objective."""
-    rules: list[EpisodePolicy] = [RulePolicy(), RuleEstimatedSigmaPolicy()]
-    if source == "sim":
-        rules.append(RuleTrueSigmaPolicy())
+    rules: list[EpisodePolicy] = [RulePolicy()]
+    if sets_sigma_rule(backend):
+        rules.append(RuleEstimatedSigmaPolicy())
+        if source == "sim":
+            rules.append(RuleTrueSigmaPolicy())
     other = (OraclePolicy(search, anchors=rules, objective="success_auc", name="oracle_auc") if reward == "rmse"
              else OraclePolicy(search, anchors=rules, objective="rmse", name="oracle_rmse"))
     return [*rules, OraclePolicy(search, anchors=rules), other]
@@ -146,7 +150,7 @@ def evaluate(env: gym.Env, policies: Sequence[Policy], episodes: Sequence[Episod
         actions = np.stack([p.act(obs, env) for p in policies])
         results = [None if p.leaves_alone(obs) else base.score(a[None]) for p, a in zip(policies, actions)]
         estimates = [ep.y[None], *(ep.y[None] if r is None else r["estimates"] for r in results)]
-        keys = next(r for r in results if r is not None)["params"]  # the rule's at least
+        keys = parameter_family(backend)
         params = {k: np.array([np.nan, *(np.nan if r is None else float(r["params"][k][0]) for r in results)]) for k in keys}
         if adaptive is not None:
             estimates.append(sage_husa_positions(ep.y[None], ep.tau, ep.nominal.sigma_w, ep.nominal.sigma_v, adaptive))

@@ -73,7 +73,7 @@ DEFAULT_PRETRAINED = "otb_tracker_kf_cmn"  # chosen on the val split (README, sm
 TAU_RANGE = (1e-3, 1.0)  # s, the envs' range of frame intervals
 MIN_FRAMES = 8  # the envs' shortest track
 MIN_MEASURED = 2  # a box scale and one difference
-SOURCE_ONLY = ("trackers", "mix_weights", "otb_speedup_max")  # env settings that EnvConfig refuses with source "sim"
+SOURCE_ONLY = ("trackers", "mix_weights", "otb_speedup_max", "mot_root")  # env settings that EnvConfig refuses with source "sim"
 
 
 def check_boxes(boxes: ArrayLike, name: str = "boxes") -> np.ndarray:
@@ -262,7 +262,8 @@ def tune(boxes: ArrayLike, tau: Any, backend: str | None = None, pretrained: str
          model: str | os.PathLike | None = None) -> dict[str, float | int]:
     """Filter parameters for the track ``boxes`` (T, 4) xywh px (NaN rows missing) at frame interval ``tau`` (s),
     chosen by a trained tuner from the measurements: ``{name: value}`` for every parameter the back end takes
-    (e.g. ufir_cmn: ``psi``, ``horizon``). Which tuner: module docstring."""
+    (e.g. ufir_cmn: ``psi``, ``horizon``; bytetrack_kf: its two std weights and ``std_aspect_measurement``, stock
+    unless tuned). Which tuner: module docstring."""
     return load_tuner(backend, pretrained, model).tune(boxes, tau)
 
 

@@ -10,7 +10,8 @@ import filters
 from envs.episodes.actions import ACCEPTS
 from envs.episodes.config import EnvConfig
 from envs.episodes.features import FEATURE_NAMES, WINDOW_FEATURE_NAMES, measurement_features, window_features
-from envs.episodes.scoring import SCORE_KEYS, box_model, hold_missing, reward_from, run_positions, score_estimates
+from envs.episodes.scoring import (SCORE_KEYS, box_model, detections, hold_missing, reward_from, run_positions,
+                                   score_estimates)
 from envs.track_env import TrackEnv, check_reset_args
 
 
@@ -22,9 +23,9 @@ class FilterRetuneEnv(TrackEnv):
     each step sets the filter's parameters for the next window, the filter runs over it and the reward
     compares the window's estimates with the fixed rule's. The filter's memory carries over across windows:
 
-    * Kalman family (kf, kf_cmn, ukf): the posterior state and covariance at the window's last frame (and,
-      for kf_cmn, the last measurement, needed for the differenced measurement) start the next window,
-      whose new σ/ψ apply from its first frame on (:meth:`filters.base.Filter.run_from`).
+    * Kalman family (kf, kf_cmn, ukf, bytetrack_kf): the posterior state and covariance at the window's last
+      frame (and, for kf_cmn, the last measurement, needed for the differenced measurement) start the next
+      window, whose new σ/ψ (or weights) apply from its first frame on (:meth:`filters.base.Filter.run_from`).
     * FIR family: the measurement buffer is the whole past, so a horizon change takes effect at once: the
       first estimate of the window already averages over the last N_new measurements (reaching back into
       earlier windows); nothing is re-initialised, and only while the track is shorter than N_new does the
@@ -119,7 +120,10 @@ class FilterRetuneEnv(TrackEnv):
     here.
     ``scenario="nonstationary"`` gives simulated tracks whose right parameters change within the track
     (regime switches of ψ and σ_ξ, manoeuvre bursts, occlusion gaps: :mod:`envs.data.sim_regimes`), where
-    re-tuning has something to gain.
+    re-tuning has something to gain. ``detection_dropout``, ``miss_rate_range``, ``miss_run_range`` and
+    ``outlier_rate_range`` add a real detection stream's missed frames and wrong boxes to the episodes as in
+    FilterTune-v0 (a window may then hold few or no measurements; the drawn rates come with the last step's
+    ``info["scenario"]``).
 
     >>> import gymnasium as gym, envs
     >>> env = gym.make("bboxtune/FilterRetune-v0", backend="kf_cmn", track_length=200, window=50)
@@ -151,6 +155,7 @@ class FilterRetuneEnv(TrackEnv):
       held (see Description); episodes without such frames score as before.
     * v0, offline view: ``retune_view="offline"`` adds the coming window's and the whole track's measurement
       features (shape + 40); the default ``"causal"`` observation is unchanged.
+    * v0, detection errors (as FilterTune-v0; defaults off, no change to any episode).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
@@ -192,7 +197,8 @@ class FilterRetuneEnv(TrackEnv):
         end = window_end if end is None else end
         n = len(params["horizon"])
         flt = filters.make(self.config.backend, box_model(ep.tau), **{k: params[k] for k in ACCEPTS[self.config.backend]})
-        est, after = flt.positions_from(np.broadcast_to(ep.y[start:end], (n, end - start, 4)), carry)
+        y = detections(self.config.backend, ep.y[start:end])
+        est, after = flt.positions_from(np.broadcast_to(y, (n, end - start, 4)), carry)
         return hold_missing(est, self._estimate[start - 1] if start > 0 else None), after  # the last box shown
 
     def _advance(self, params: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

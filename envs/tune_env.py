@@ -24,18 +24,31 @@ class FilterTuneEnv(TrackEnv):
     drawn with ``mix_weights`` (``"mix"``: one policy for all three). The agent sees a summary of the *measurements* and chooses the smoothing filter's
     parameters (ψ, horizon N, noise scales) for the whole track; the filter (``backend``) then runs over the
     track and the reward compares it with the fixed rule of the literature (N = N_opt(σ_v, σ_w, τ) with
-    nominal σ, ψ = ``nominal_psi``) on the same measurements.
+    nominal σ, ψ = ``nominal_psi``; for ``bytetrack_kf`` the stock ByteTrack filter) on the same measurements.
 
     ## Action Space
     ``Box(-1, 1, (d,), float32)``, one entry per name in ``tune`` (default per back end:
     ``envs.episodes.actions.DEFAULT_TUNE``, e.g. ``("psi", "horizon")`` for ``ufir_cmn``):
 
-    | parameter | mapping from a ∈ [-1, 1]                         | range                      |
-    |-----------|--------------------------------------------------|----------------------------|
-    | psi       | ψ = 0.99 (a + 1) / 2                              | [0, 0.99]                  |
-    | horizon   | N = round(2 (N_max / 2)^((a + 1) / 2)), log scale | integers [2, N_max=400]    |
-    | sigma_w   | σ_w = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]     |
-    | sigma_v   | σ_v = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]     |
+    | parameter              | mapping from a ∈ [-1, 1]                          | range                   |
+    |------------------------|---------------------------------------------------|-------------------------|
+    | psi                    | ψ = 0.99 (a + 1) / 2                              | [0, 0.99]               |
+    | horizon                | N = round(2 (N_max / 2)^((a + 1) / 2)), log scale | integers [2, N_max=400] |
+    | sigma_w                | σ_w = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]  |
+    | sigma_v                | σ_v = nominal · 10^(1.5 a)                        | nominal · [0.03, 31.6]  |
+    | std_weight_position    | σ_p = stock · 10^(1.5 a), stock 1/20              | stock · [0.03, 31.6]    |
+    | std_weight_velocity    | σ_ṗ = stock · 10^(1.5 a), stock 1/160             | stock · [0.03, 31.6]    |
+    | std_aspect_measurement | s_m = stock · 10^(1.5 a), stock 0.1               | stock · [0.03, 31.6]    |
+
+    The last three are ``backend="bytetrack_kf"``'s (ByteTrack's / DeepSORT's box Kalman filter,
+    :mod:`filters.bytetrack_kf`): its two std weights (noise relative to the box height; the default ``tune``)
+    and, on request (``tune=(..., "std_aspect_measurement")``), the aspect ratio's measurement std. Their
+    nominal is ByteTrack's published value in every episode, so the rule's action is stock ByteTrack and the
+    reward (``reward_baseline="rule"``) is the gain over it. Scaling both weights by one factor scales the
+    filter's Q, R and P₀ alike: the estimates depend on σ_ṗ / σ_p only (as OFIR's on σ_w / σ_v), and the width
+    through the aspect ratio, which neither weight touches (a per-episode grid oracle's mean log-ratio over 60
+    default sim episodes, whose aspect noise σ_ξ / size varies widely: 0.05 with the weights, 0.13 with s_m too;
+    over 60 MOT15 pedestrian episodes 0.17 either way). ``sort_kf`` has no parameters to tune and is not a back end of the envs.
 
     ``envs.episodes.actions.ActionMap`` implements it both ways (``to_params`` / ``to_actions``). ``step`` takes
     exactly one action of shape (d,): any other shape (a batch (A, d) included) raises ``ValueError``, as do
@@ -51,7 +64,10 @@ class FilterTuneEnv(TrackEnv):
     tracker output) and ``ofir`` up to 32 % (17 %; its horizon-start prior ties the estimate to the previous
     measurement unless σ_w/σ_v is large); the opt-ins ``sigma_decades=2.5`` (``kf``, ``ukf``: within 1e-4)
     and ``tune=("horizon", "sigma_w", "sigma_v"), sigma_decades=2.5`` (``ofir``: within 2e-5) reach it
-    (maxima of |estimate − y| / box scale over a track; tests/envs/test_trust_measurement.py).
+    (maxima of |estimate − y| / box scale over a track; tests/envs/test_trust_measurement.py). ``bytetrack_kf``
+    (σ_p at -1, σ_ṗ at +1) follows cx, cy, h to 1e-4 of the box scale but keeps the stock aspect smoothing of w
+    (up to 36 %; 5 % with s_m tuned too, at -1); with s_m tuned and ``sigma_decades=2.5`` it is within 1e-3
+    (tests/envs/test_bytetrack_env.py).
 
     ## Observation Space
     ``Box(-inf, inf, (20,), float32)``: features of the measured boxes only, never the truth or the true
@@ -121,6 +137,9 @@ class FilterTuneEnv(TrackEnv):
     (``envs.episodes.config.TRACK_LENGTH_MAX``); simulated box sizes are reflected at ``box_size_bounds`` (default
     4 to 1000 px, ``envs.data.simulate``), so they stay plausible at any length.
 
+    ``backend``: one of ``envs.episodes.actions.BACKENDS`` — the eight of ``filters.NAMES`` and ``"bytetrack_kf"``
+    (Action Space); ``tune`` names parameters of ``envs.episodes.actions.ACCEPTS[backend]``.
+
     ``trackers`` (``otb_tracker``, ``mix``): the tracker names an episode's tracker is drawn from (each must
     exist under the OTB root; None → ``(tracker,)``, the single-tracker env of before). The default tracker
     split is ``envs.data.otb.TRACKER_SPLIT``: ``"test"`` = SiamRPN++, CFNet, STRUCK, MDNet (held out, never
@@ -144,6 +163,26 @@ class FilterTuneEnv(TrackEnv):
     random times (:mod:`envs.data.sim_regimes`). The schedule is revealed with the truth, in the step's
     ``info["scenario"]`` (``regimes``, ``manoeuvres``, ``gaps``; ``psi`` / ``sigma_xi`` there are the
     frame-weighted mean ψ and rms σ_ξ), never in the observation.
+
+    Detection errors (sources ``sim``, ``otb``, ``otb_tracker`` and every part of ``mix``; refused with ``video``
+    and ``mot``, whose detectors miss already), to train on what a real detection stream looks like (MOT15
+    public detections miss 44 % of a pedestrian's frames on average, in runs of median 2 and up to 214 frames,
+    and sometimes match a wrong box): ``detection_dropout`` — ``"none"`` (default), ``"bernoulli"`` (each frame
+    missed independently at the episode's miss rate) or ``"runs"`` (a Gilbert–Elliott chain: miss runs of mean
+    length L frames, the stationary miss fraction equal to the rate; L is raised to rate / (1 − rate) where it
+    could not reach it) — with the rate uniform in ``miss_rate_range`` (default (0, 0.6), within [0, 0.95]) and
+    L log-uniform in ``miss_run_range`` (default (1, 20), within [1, 1000]; ``"runs"`` only); and
+    ``outlier_rate_range`` (default (0, 0): off, within [0, 0.5]), the per-episode probability, uniform, that a
+    measured frame (with ground truth) shows a nearby object's box instead: the true box's size × a log-normal
+    factor (log std 0.3), its centre 0.5–2 box heights away in a random direction (any ``detection_dropout``).
+    A missed frame is a NaN row of the measurements (the filters predict through it; the truth is scored as
+    before); the first and last measured frames always stay. The errors come from the episode's own generator
+    ``(noise_seed, 5)`` (``envs.episodes.sources``): the episode is still a pure function of its seed, and the
+    nominal σ of the OTB sources and ``sim_noise="box"`` come from the measurements left. The drawn
+    ``miss_rate``, ``miss_run`` and ``outlier_rate`` are revealed in the step's ``info["scenario"]``; the
+    observation's fraction of missing frames shows what was missed. Details: :mod:`envs.data.sim_detections`.
+    A range that would not be used is refused, not ignored (``miss_rate_range`` without dropout,
+    ``miss_run_range`` without ``"runs"``).
 
     >>> import gymnasium as gym, envs
     >>> env = gym.make("bboxtune/FilterTune-v0", backend="ufir_cmn", source="sim", track_length=300)
@@ -180,6 +219,11 @@ class FilterTuneEnv(TrackEnv):
     * v0, ``reward_baseline`` (default ``"rule"``: no change to any reward) and ``sim_noise`` (default
       ``"absolute"``: no change to any episode).
     * v0, ``otb_speedup_max`` (default 1: no change to any episode).
+    * v0: backend bytetrack_kf added (no change to existing episodes): ByteTrack's box Kalman filter with its two
+      std weights (and, on request, the aspect's measurement std) tuned around the stock values.
+    * v0, detection errors: ``detection_dropout``, ``miss_rate_range``, ``miss_run_range``, ``outlier_rate_range``
+      (defaults: none, no change to any episode, checked bit for bit); ``info["scenario"]`` adds the drawn
+      ``miss_rate`` / ``miss_run`` / ``outlier_rate`` when they are on.
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

@@ -32,6 +32,7 @@ import filters
 from agents.cli import ArgumentParser, argument_errors, nonnegative_int, positive_int
 from agents.commands.bench_filters import filterpy_loop
 from agents.runs import make_vec
+from envs.episodes.actions import BACKENDS
 from envs.episodes.config import EnvConfig
 from envs.episodes.scoring import run_positions
 
@@ -48,7 +49,7 @@ def rates(count: int, fn, repeat: int) -> tuple[float, float]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(prog="bench_env.py", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--backend", default="ufir_cmn", choices=filters.NAMES)
+    ap.add_argument("--backend", default="ufir_cmn", choices=BACKENDS)
     ap.add_argument("--episodes", type=positive_int, default=1000, help="steps per timed block")
     ap.add_argument("--candidates", type=positive_int, default=256, help="actions per score() call")
     ap.add_argument("--calls", type=positive_int, default=10, help="score() calls per timed block")

@@ -18,16 +18,16 @@ output has no noise seed). --seed also seeds the baselines' training episodes, O
 bootstrap.
 
 Methods (agents.baselines, agents.adaptive): raw (the measurements themselves, no filter; a frame without a
-measurement is scored as a missing estimate: a failure for success AUC / precision, left out of the RMSE), rule,
-rule_est_sigma, rule_true_sigma (sim only), oracle (per-episode search maximising the env's reward with the
-truth), oracle_auc (maximising success AUC; oracle_rmse, minimising RMSE, when the reward is not RMSE), global,
-amortised, adaptive, the trained model (named by its algorithm, e.g. ppo) and its best-on-validation checkpoint
-(<algo>_best); with --gate also each final model gated (<algo>_gated, agents.gate: its action where a ridge
-regressor predicts that it beats the raw measurements by more than a margin chosen on val episodes; elsewhere the
-measurements left alone, scored as raw; each fitted gate is written to gates/<name>.json, for smooth.py --gate). All
-methods see the same episodes (common random numbers); global and amortised are fitted on
-train-split episodes of the evaluation env, the gates on train- and val-split episodes of the run's own env (so a
-transfer evaluation stays one).
+measurement is scored as a missing estimate: a failure for success AUC / precision, left out of the RMSE), rule
+(bytetrack_kf: stock ByteTrack), rule_est_sigma, rule_true_sigma (sim only; neither for bytetrack_kf), oracle
+(per-episode search maximising the env's reward with the truth), oracle_auc (maximising success AUC; oracle_rmse,
+minimising RMSE, when the reward is not RMSE), global, amortised, adaptive, the trained model (named by its
+algorithm, e.g. ppo) and its best-on-validation checkpoint (<algo>_best); with --gate also each final model gated
+(<algo>_gated, agents.gate: its action where a ridge regressor predicts that it beats the raw measurements by more
+than a margin chosen on val episodes; elsewhere the measurements left alone, scored as raw; each fitted gate is
+written to gates/<name>.json, for smooth.py --gate). All methods see the same episodes (common random numbers);
+global and amortised are fitted on train-split episodes of the evaluation env, the gates on train- and val-split
+episodes of the run's own env (so a transfer evaluation stays one).
 
 Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by agents.retune_eval instead: raw, rule (every
 window), oneshot_oracle (the best single action for the track, with the truth), oneshot_learned (--oneshot-model
@@ -317,7 +317,7 @@ def run(argv: list[str] | None = None) -> Path:
     search = GridSearch(budget=args.oracle_budget)
     settings = BaselineSettings(train_episodes=args.train_episodes, global_episodes=min(300, args.train_episodes),
                                 global_trials=args.global_trials, seed=args.seed)
-    standard = standard_policies(source, search, config.reward)
+    standard = standard_policies(source, search, config.reward, backend=config.backend)
     oracle = next(p for p in standard if isinstance(p, OraclePolicy) and p.name == "oracle")
     start = time.perf_counter()
     fitted = fit_baselines(train_env, oracle, settings, progress=True)

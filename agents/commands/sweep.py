@@ -18,12 +18,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import filters
 from agents.algos import ALGOS
 from agents.cli import ArgumentParser, HelpFormatter, float_range, key_values, nonnegative_int, out_dir, positive_int
 from agents.run_files import RunError
 from agents.runs import check_free
 from agents.sweep import SweepSpec, run_sweep
+from envs.episodes.actions import BACKENDS
 from envs.episodes.config import SOURCES
 
 SMOKE = SweepSpec(seeds=(0, 1), timesteps=128,
@@ -37,7 +37,7 @@ def build_parser() -> ArgumentParser:
     p = ArgumentParser(prog="sweep.py", description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False)
     p.add_argument("--out", type=out_dir, required=True, help="sweep folder: new or empty (with --resume: the sweep's)")
     p.add_argument("--algos", nargs="+", choices=sorted(ALGOS), default=["ppo"])
-    p.add_argument("--backends", nargs="+", choices=filters.NAMES, default=["ufir_cmn"])
+    p.add_argument("--backends", nargs="+", choices=BACKENDS, default=["ufir_cmn"])
     p.add_argument("--sources", nargs="+", choices=SOURCES, default=["sim"])
     p.add_argument("--seeds", nargs="+", type=nonnegative_int, default=[0, 1, 2])
     p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY:V1,V2",

@@ -44,7 +44,7 @@ from agents.video_tuning import load_tuner
 from envs.data import metrics
 from envs.data.atomic_files import atomic_write
 from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
-from envs.episodes.actions import ACCEPTS
+from envs.episodes.actions import ACCEPTS, BACKENDS
 from envs.episodes.config import EnvConfig
 from envs.episodes.video_source import VideoSettings, VideoSource
 from envs.video.camera import frame_shift, run_compensated
@@ -65,7 +65,7 @@ def build_parser() -> ArgumentParser:
     src.add_argument("--frames", type=existing_dir, help="a folder of numbered images (OTB layout <Video>[/img]/0001.jpg)")
     p.add_argument("--init", type=box_xywh, help="initial box x,y,w,h (default: the first ground-truth box)")
     p.add_argument("--detector", default="template", choices=DETECTORS)
-    p.add_argument("--filter", default=None, choices=filters.NAMES,
+    p.add_argument("--filter", default=None, choices=BACKENDS,
                    help="back end (default: the tuner's, else ufir_cmn)")
     p.add_argument("--tuned", default=None, help="tuned.json or train.py run directory choosing the parameters")
     p.add_argument("--trust-pickle", action="store_true",

@@ -46,7 +46,6 @@ from stable_baselines3.common.callbacks import CallbackList, EvalCallback
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 import envs  # noqa: F401
-import filters
 from agents.algos import ALGOS, algo_class
 from agents.callbacks import AtomicCheckpoint, EpisodeLog, SaveBest, restore_eval_state
 from agents.checkpoints import Checkpoint, newest_complete
@@ -60,6 +59,7 @@ from agents.runs import (CONFIG, ENV_ERRORS, RESUME_KEYS, RunLock, check_free, c
 from agents.safe_load import load_model, stamp
 from envs.data.atomic_files import atomic_write, write_text_atomic
 from envs.data.otb import TRACKER_SPLIT
+from envs.episodes.actions import BACKENDS
 from envs.episodes.config import SOURCES, EnvConfig
 from envs.episodes.scoring import reward_label
 
@@ -72,7 +72,7 @@ def build_parser() -> ArgumentParser:
     p = ArgumentParser(prog="train.py", description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False)
     p.add_argument("--algo", default="ppo", choices=sorted(ALGOS), help="SB3 algorithm")
     p.add_argument("--env", default=DEFAULT_ENV, help="env id (registered by `import envs`)")
-    p.add_argument("--backend", default="ufir_cmn", choices=filters.NAMES, help="filter back end the tuner sets")
+    p.add_argument("--backend", default="ufir_cmn", choices=BACKENDS, help="filter back end the tuner sets")
     p.add_argument("--source", default="sim", choices=SOURCES, help="episode source (video: set --env-kwargs detector:NAME)")
     p.add_argument("--reward", default="rmse", choices=("rmse", "iou_precision", "success_auc"), help="env reward")
     p.add_argument("--timesteps", type=positive_int, default=None,

@@ -27,12 +27,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-import filters
 from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int,
                         out_dir)
 from agents.stats import paired_mean_ci
 from agents.video_tables import csv_text, folder_in_use, json_text, publish_folder
 from agents.video_tuning import EpisodeTuner, action_map, grid_tune, load_tuner
+from envs.episodes.actions import BACKENDS
 from envs.episodes.config import TRACK_LENGTH_MAX, EnvConfig
 from envs.episodes.scoring import run_positions, score_estimates
 from envs.episodes.video_source import VideoSettings, VideoSource
@@ -51,8 +51,8 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--frames", type=int_range(8, TRACK_LENGTH_MAX), default=200, help="frames per video (30 fps)")
     p.add_argument("--detectors", nargs="+", default=None, choices=DETECTORS, metavar="NAME",
                    help=f"detectors, of {', '.join(DETECTORS)} (default: all)")
-    p.add_argument("--backends", nargs="+", default=None, choices=filters.NAMES, metavar="NAME",
-                   help=f"filter back ends, of {', '.join(filters.NAMES)} (default: ufir_cmn kf; with --tuned: "
+    p.add_argument("--backends", nargs="+", default=None, choices=BACKENDS, metavar="NAME",
+                   help=f"filter back ends, of {', '.join(BACKENDS)} (default: ufir_cmn kf; with --tuned: "
                         "the tuner's)")
     p.add_argument("--grid", type=int_range(2, MAX_CANDIDATES), default=9,
                    help=f"grid points per tuned parameter (at most {MAX_CANDIDATES} grid points in all)")

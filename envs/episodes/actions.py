@@ -2,12 +2,22 @@
 
 An action is a float vector in [-1, 1]^d, one entry per tuned parameter (``tune``, in that order):
 
-| parameter | mapping from a ∈ [-1, 1]                               | range                          |
-|-----------|--------------------------------------------------------|--------------------------------|
-| psi       | ψ = ψ_max (a + 1) / 2                                  | [0, ψ_max], ψ_max = 0.99       |
-| horizon   | N = round(K (N_max / K)^((a + 1) / 2))  (log scale)    | integers [K, N_max]            |
-| sigma_w   | σ_w = σ_w,nominal · 10^(D a)             (log scale)   | nominal · [10^-D, 10^D], D=1.5 |
-| sigma_v   | σ_v = σ_v,nominal · 10^(D a)             (log scale)   | nominal · [10^-D, 10^D]        |
+| parameter              | mapping from a ∈ [-1, 1]                               | range                          |
+|------------------------|--------------------------------------------------------|--------------------------------|
+| psi                    | ψ = ψ_max (a + 1) / 2                                  | [0, ψ_max], ψ_max = 0.99       |
+| horizon                | N = round(K (N_max / K)^((a + 1) / 2))  (log scale)    | integers [K, N_max]            |
+| sigma_w                | σ_w = σ_w,nominal · 10^(D a)             (log scale)   | nominal · [10^-D, 10^D], D=1.5 |
+| sigma_v                | σ_v = σ_v,nominal · 10^(D a)             (log scale)   | nominal · [10^-D, 10^D]        |
+| std_weight_position    | σ_p = stock · 10^(D a), stock 1/20       (log scale)   | stock · [10^-D, 10^D]          |
+| std_weight_velocity    | σ_ṗ = stock · 10^(D a), stock 1/160      (log scale)   | stock · [10^-D, 10^D]          |
+| std_aspect_measurement | s_m = stock · 10^(D a), stock 1e-1       (log scale)   | stock · [10^-D, 10^D]          |
+
+The last three are ``bytetrack_kf``'s (:mod:`filters.bytetrack_kf`: its noise weights relative to the box height
+and the aspect's measurement std). Their nominal value is ByteTrack's published one (:data:`STOCK`) in every
+episode, whatever its σ: the fixed rule of that back end is the stock filter practitioners run, so its reward
+measures the gain over stock ByteTrack. Every back end's :class:`Nominal` carries them (untouched by the others).
+One factor on both weights scales that filter's Q, R and P₀ alike, so its estimates depend on their ratio only
+(as OFIR's on σ_w / σ_v); the aspect's gain depends on s_m, which neither weight touches.
 
 The horizon is mapped on an absolute log scale rather than as a multiplier on the rule's N_opt: the rule's
 own N_opt is computed from nominal σ that can be off by a decade, so a multiplier would tie the reachable
@@ -24,9 +34,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from filters.bytetrack_kf import ByteTrackKF
 from filters.horizon import rule_horizon
+from filters.registry import NAMES
 
-TUNABLE: tuple[str, ...] = ("psi", "horizon", "sigma_w", "sigma_v")
+# bytetrack_kf's tunable parameters at their published values (the nominal of every episode: module docstring)
+STOCK: dict[str, float] = {k: ByteTrackKF.DEFAULTS[k] for k in
+                           ("std_weight_position", "std_weight_velocity", "std_aspect_measurement")}
+SIGMA_PARAMETERS: tuple[str, ...] = ("psi", "horizon", "sigma_w", "sigma_v")  # what the filters.NAMES back ends take
+TUNABLE: tuple[str, ...] = (*SIGMA_PARAMETERS, *STOCK)
 
 # Which parameters each back end accepts from the tuner (the others stay at their nominal values).
 ACCEPTS: dict[str, tuple[str, ...]] = {
@@ -38,7 +54,10 @@ ACCEPTS: dict[str, tuple[str, ...]] = {
     "oufir": ("horizon", "sigma_w", "sigma_v"),
     "fir": ("horizon", "sigma_w", "sigma_v"),
     "ukf": ("sigma_w", "sigma_v"),
+    "bytetrack_kf": tuple(STOCK),  # std_aspect_measurement on request only (tune=...)
 }
+# The back ends of the envs: the eight of filters.NAMES and ByteTrack's box KF (sort_kf has no parameters to tune)
+BACKENDS: tuple[str, ...] = (*NAMES, "bytetrack_kf")
 
 # Default ``tune``: OFIR/OUFIR/FIR gains depend on σ_w/σ_v only through their ratio, so σ_v stays nominal.
 DEFAULT_TUNE: dict[str, tuple[str, ...]] = {
@@ -50,9 +69,16 @@ DEFAULT_TUNE: dict[str, tuple[str, ...]] = {
     "oufir": ("horizon", "sigma_w"),
     "fir": ("horizon", "sigma_w"),
     "ukf": ("sigma_w", "sigma_v"),
+    "bytetrack_kf": ("std_weight_position", "std_weight_velocity"),  # the two std weights
 }
 
 _TOLERANCE = 1e-6
+
+
+def parameter_family(backend: str) -> tuple[str, ...]:
+    """The parameters of ``backend``'s family, which records of its runs list (untuned ones at their nominal values):
+    :data:`SIGMA_PARAMETERS` for the eight of ``filters.NAMES``, bytetrack_kf's three (:data:`STOCK`) for it."""
+    return tuple(STOCK) if backend == "bytetrack_kf" else SIGMA_PARAMETERS
 
 
 K_AXIS = 2  # state size of one coordinate's constant-velocity model (the smallest horizon)
@@ -66,6 +92,10 @@ class Nominal:
     sigma_v: float  # coordinate units, white measurement noise std
     psi: float  # CMN coloredness assumed by the rule
     horizon: int  # frames, the rule's N = round(N_opt(σ_v, σ_w, τ)) within [K, N_max]
+    # bytetrack_kf's: ByteTrack's published values in every episode (its rule is the stock filter)
+    std_weight_position: float = STOCK["std_weight_position"]
+    std_weight_velocity: float = STOCK["std_weight_velocity"]
+    std_aspect_measurement: float = STOCK["std_aspect_measurement"]
 
     @classmethod
     def of_rule(cls, sigma_v: float, sigma_w: float, tau: float, psi: float, horizon_max: int) -> Nominal:
@@ -76,8 +106,7 @@ class Nominal:
 
     def as_params(self) -> dict[str, np.ndarray]:
         """The parameters as one candidate of a filter run: {name: array (1,)} for every name in ``TUNABLE``."""
-        return {"psi": np.array([self.psi]), "horizon": np.array([self.horizon]),
-                "sigma_w": np.array([self.sigma_w]), "sigma_v": np.array([self.sigma_v])}
+        return {k: np.array([getattr(self, k)]) for k in TUNABLE}
 
 
 @dataclass(frozen=True)
@@ -88,7 +117,7 @@ class ActionMap:
     K: int  # state size of one coordinate's model (smallest horizon)
     horizon_max: int = 400  # frames, N_max
     psi_max: float = 0.99
-    sigma_decades: float = 1.5  # D: σ ranges over nominal · 10^[-D, D]
+    sigma_decades: float = 1.5  # D: σ (and bytetrack_kf's weights) range over nominal · 10^[-D, D]
 
     def __post_init__(self) -> None:
         unknown = [p for p in self.tune if p not in TUNABLE]
@@ -145,12 +174,7 @@ class ActionMap:
             if len(nominal) != n:
                 raise ValueError(f"{len(nominal)} nominal parameter sets for {n} actions; allowed: one per action")
             values = {k: np.array([getattr(x, k) for x in nominal]) for k in TUNABLE}
-        out = {
-            "psi": np.full(n, values["psi"], dtype=np.float64),
-            "horizon": np.full(n, values["horizon"], dtype=np.int64),
-            "sigma_w": np.full(n, values["sigma_w"], dtype=np.float64),
-            "sigma_v": np.full(n, values["sigma_v"], dtype=np.float64),
-        }
+        out = {k: np.full(n, values[k], dtype=np.int64 if k == "horizon" else np.float64) for k in TUNABLE}
         for j, name in enumerate(self.tune):
             u = (a[:, j] + 1.0) / 2.0
             if name == "psi":

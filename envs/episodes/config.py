@@ -17,11 +17,11 @@ from typing import Any
 
 import numpy as np
 
-import filters
-from envs.episodes.actions import ACCEPTS, DEFAULT_TUNE
+from envs.data.sim_detections import DROPOUTS
+from envs.episodes.actions import ACCEPTS, BACKENDS, DEFAULT_TUNE
 from envs.video.detectors import DETECTORS
 
-SOURCES = ("sim", "otb", "otb_tracker", "video", "mix")
+SOURCES = ("sim", "otb", "otb_tracker", "video", "mix", "mot")
 MIX_SOURCES = ("sim", "otb", "otb_tracker")  # the parts of source "mix", in the order of mix_weights
 SPLITS = ("train", "val", "test")
 SCENARIOS = ("stationary", "nonstationary")  # sim: one regime per track, or regimes switching within it
@@ -121,8 +121,10 @@ def _tune(backend: str, value: Any) -> tuple[str, ...]:
 class EnvConfig:
     """Every argument of ``bboxtune/FilterTune-v0`` and ``bboxtune/FilterRetune-v0`` (units, allowed values)."""
 
-    source: str = "sim"  # "sim" | "otb" (GT + synthetic CMN) | "otb_tracker" (real tracker output) | "video" | "mix"
-    backend: str = "ufir_cmn"  # any name in filters.NAMES
+    # "sim" | "otb" (GT + synthetic CMN) | "otb_tracker" (real tracker output) | "video" | "mix" | "mot" (MOT15 public
+    # detections matched to ground-truth identities, envs.episodes.mot_source)
+    source: str = "sim"
+    backend: str = "ufir_cmn"  # any name in envs.episodes.actions.BACKENDS: filters.NAMES and "bytetrack_kf"
     reward: str = "rmse"  # "rmse": log(RMSE_rule / RMSE); "iou_precision" / "success_auc": difference to the rule
     # FilterTune-v0: what the reward is measured against, "rule" | "raw" (the unfiltered measurements: the same best
     # action per episode, a lower-variance signal where the filter should stay near the measurements)
@@ -146,6 +148,16 @@ class EnvConfig:
     # of the σ ranges) | "box" (the "otb" source's noise on the simulated truth: box-relative CMN, σ_rel from
     # cmn_rel_range; nominal σ = otb_sigma_v_rel / otb_sigma_w_rel × the measured box scale); sim / mix, stationary
     sim_noise: str = "absolute"
+    # detection errors of a real detection stream, added to the measurements (envs.data.sim_detections; sources sim,
+    # otb, otb_tracker and mix, not video or mot, whose detectors already miss): missed frames (NaN rows of y, the
+    # first and last measured frame kept) — "none" | "bernoulli" (each frame missed independently at the episode's
+    # miss rate) | "runs" (Gilbert–Elliott miss runs of mean length miss_run at that rate)
+    detection_dropout: str = "none"
+    miss_rate_range: tuple[float, float] = (0.0, 0.6)  # fraction of frames missed, per episode, uniform; within [0, 0.95]
+    miss_run_range: tuple[float, float] = (1.0, 20.0)  # frames, mean miss run ("runs"), log-uniform; within [1, 1000]
+    # probability that a measured frame's box is a wrong match (a nearby object's box: envs.data.sim_detections), per
+    # episode, uniform; with any detection_dropout; within [0, 0.5]
+    outlier_rate_range: tuple[float, float] = (0.0, 0.0)
     # OTB sources
     otb_root: str | None = None  # folder of the OTB data; None -> $OTB_ROOT
     split: str = "train"  # "train" | "val" | "test": which sequences episodes are drawn from
@@ -155,9 +167,11 @@ class EnvConfig:
     trackers: tuple[str, ...] | None = None
     # source "mix": relative weights of its parts (sim, otb, otb_tracker), each a real in [0, 1e6], sum > 0
     mix_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    mot_root: str | None = None  # source "mot": folder of the MOT15 data (envs.data.mot); None -> $MOT_ROOT
     otb_tau: float = 1 / 30  # s, OTB frame interval (30 fps); in [1e-3, 1]
     # OTB sources, train split only (augmentation for fast motion): each episode plays its sequence at a random frame
-    # stride k in [1, otb_speedup_max] (envs.episodes.sources.OTBSource), so the object moves k times as far per frame;
+    # stride k in [1, otb_speedup_max] (envs.episodes.sources.OTBSource), so the object moves k times as far per frame
+    # (source "mot" too: its identities are then played at fps / k, τ = k / fps, envs.episodes.mot_source);
     # the val and test splits always play every frame; integer in [1, 8]
     otb_speedup_max: int = 1
     cmn_rel_range: tuple[float, float] = (0.01, 0.1)  # source "otb": σ_ξ relative to the box size, log-uniform; within [1e-4, 1]
@@ -188,7 +202,7 @@ class EnvConfig:
     def __post_init__(self) -> None:
         put = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731 (frozen: normalised values)
         put("source", check_choice("source", self.source, SOURCES))
-        put("backend", check_choice("backend", self.backend, filters.NAMES))
+        put("backend", check_choice("backend", self.backend, BACKENDS))
         put("reward", check_choice("reward", self.reward, REWARDS))
         put("reward_baseline", check_choice("reward_baseline", self.reward_baseline, ("rule", "raw")))
         put("split", check_choice("split", self.split, SPLITS))
@@ -200,6 +214,20 @@ class EnvConfig:
         if self.sim_noise == "box" and (self.source not in ("sim", "mix") or self.scenario != "stationary"):
             raise ValueError(f"sim_noise='box' with source={self.source!r}, scenario={self.scenario!r}: allowed only "
                              "with source 'sim' or 'mix' (its sim part) and scenario 'stationary'")
+        put("detection_dropout", check_choice("detection_dropout", self.detection_dropout, DROPOUTS))
+        put("miss_rate_range", check_range("miss_rate_range", self.miss_rate_range, 0.0, 0.95))
+        put("miss_run_range", check_range("miss_run_range", self.miss_run_range, 1.0, 1000.0))
+        put("outlier_rate_range", check_range("outlier_rate_range", self.outlier_rate_range, 0.0, 0.5))
+        detector = "with source 'sim', 'otb', 'otb_tracker' or 'mix' (the video and mot detectors miss and err already)"
+        for name, default, used, allowed in (
+                ("detection_dropout", "none", self.source not in ("video", "mot"), detector),
+                ("outlier_rate_range", (0.0, 0.0), self.source not in ("video", "mot"), detector),
+                ("miss_rate_range", (0.0, 0.6), self.detection_dropout != "none",
+                 "with detection_dropout 'bernoulli' or 'runs'"),
+                ("miss_run_range", (1.0, 20.0), self.detection_dropout == "runs", "with detection_dropout 'runs'")):
+            if getattr(self, name) != default and not used:
+                raise ValueError(f"{name}={getattr(self, name)!r} with source={self.source!r}, detection_dropout="
+                                 f"{self.detection_dropout!r}: allowed only {allowed}; leave the default {default!r} otherwise")
         if self.scenario == "nonstationary" and (self.source not in ("sim", "mix") or self.motion != "cv"):
             raise ValueError(f"scenario='nonstationary' with source={self.source!r}, motion={self.motion!r}: allowed "
                              "only with source 'sim' or 'mix' (its sim part) and motion 'cv'")
@@ -223,14 +251,17 @@ class EnvConfig:
         put("cmn_rel_range", check_range("cmn_rel_range", self.cmn_rel_range, 1e-4, 1.0))
         put("otb_tau", check_real("otb_tau", self.otb_tau, 1e-3, 1.0))
         put("otb_speedup_max", check_integer("otb_speedup_max", self.otb_speedup_max, 1, 8))
-        if self.otb_speedup_max > 1 and self.source not in ("otb", "otb_tracker", "mix"):
+        if self.otb_speedup_max > 1 and self.source not in ("otb", "otb_tracker", "mix", "mot"):
             raise ValueError(f"otb_speedup_max={self.otb_speedup_max} with source={self.source!r}: allowed only with "
-                             "source 'otb', 'otb_tracker' or 'mix' (its OTB parts); leave the default 1 otherwise")
+                             "source 'otb', 'otb_tracker', 'mix' (its OTB parts) or 'mot'; leave the default 1 otherwise")
         put("otb_sigma_v_rel", check_real("otb_sigma_v_rel", self.otb_sigma_v_rel, 0.0, 10.0, open_low=True))
         put("otb_sigma_w_rel", check_real("otb_sigma_w_rel", self.otb_sigma_w_rel, 0.0, 1e4, open_low=True))
         put("sigma_decades", check_real("sigma_decades", self.sigma_decades, 0.0, 3.0, open_low=True))
         put("nominal_psi", check_real("nominal_psi", self.nominal_psi, 0.0, 0.99))
         put("otb_root", _optional_path("otb_root", self.otb_root))
+        put("mot_root", _optional_path("mot_root", self.mot_root))
+        if self.mot_root is not None and self.source != "mot":
+            raise ValueError(f"mot_root={self.mot_root!r} with source={self.source!r}: allowed only with source 'mot'")
         put("video_cache", _optional_path("video_cache", self.video_cache))
         if not isinstance(self.tracker, str) or not self.tracker:
             raise TypeError(f"tracker={self.tracker!r}; allowed: a non-empty tracker name (str)")

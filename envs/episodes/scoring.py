@@ -7,8 +7,10 @@ import numpy as np
 import filters
 from envs.data import metrics
 from envs.episodes.actions import ACCEPTS
+from filters.bytetrack_kf import SIZE_MIN
 
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
+POSITIVE_SIZES = ("bytetrack_kf",)  # back ends that take boxes with w, h >= SIZE_MIN only (they filter the aspect w / h)
 
 
 def box_model(tau: float) -> filters.StateSpaceModel:
@@ -18,22 +20,36 @@ def box_model(tau: float) -> filters.StateSpaceModel:
 
 
 def _used(backend: str, params: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The parameters of the env's set (psi, horizon, sigma_w, sigma_v) that ``backend`` takes (``ACCEPTS``)."""
+    """The parameters of the env's set (``envs.episodes.actions.TUNABLE``: psi, horizon, sigma_w, sigma_v and
+    bytetrack_kf's weights) that ``backend`` takes (``ACCEPTS``)."""
     return {k: params[k] for k in ACCEPTS[backend]}
 
 
+def detections(backend: str, y: np.ndarray) -> np.ndarray:
+    """The measured boxes ``y`` (..., T, 4) as ``backend`` receives them: for :data:`POSITIVE_SIZES` a box with w or h
+    below :data:`filters.bytetrack_kf.SIZE_MIN` is no detection (a NaN row: a detector reports no such box, and
+    simulated noise can push a small box's measured size to or below 0); every other back end takes ``y`` as it is
+    (the same array)."""
+    small = (y[..., 2:] < SIZE_MIN).any(axis=-1) if backend in POSITIVE_SIZES else None  # NaN compares False
+    if small is None or not small.any():
+        return y
+    out = y.copy()
+    out[small] = np.nan
+    return out
+
+
 def run_positions(backend: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray]) -> np.ndarray:
-    """Filter the measured boxes ``y`` (T, 4) once per candidate: ``params`` maps names to arrays (A,);
-    only the parameters ``backend`` accepts are passed. Returns position estimates (A, T, 4) cx, cy, w, h
-    (:func:`filters.candidate_positions`, which also handles frame units)."""
-    return filters.candidate_positions(backend, y, tau, _used(backend, params))
+    """Filter the measured boxes ``y`` (T, 4) (as :func:`detections`) once per candidate: ``params`` maps names to
+    arrays (A,); only the parameters ``backend`` accepts are passed. Returns position estimates (A, T, 4) cx, cy,
+    w, h (:func:`filters.candidate_positions`, which also handles frame units)."""
+    return filters.candidate_positions(backend, detections(backend, y), tau, _used(backend, params))
 
 
 def run_tracks(backend: str, ys: list[np.ndarray], taus: list[float], params: dict[str, np.ndarray]) -> list[np.ndarray]:
     """Filter B tracks, each with its own parameter set: ``ys`` B arrays (T_b, 4), ``taus`` their frame
     intervals, ``params`` arrays (B,). Returns the position estimates, B arrays (T_b, 4), each equal to
     :func:`run_positions` on its track (:func:`filters.track_positions`: tracks of equal length share a call)."""
-    return filters.track_positions(backend, ys, taus, _used(backend, params))
+    return filters.track_positions(backend, [detections(backend, y) for y in ys], taus, _used(backend, params))
 
 
 def hold_missing(est: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:

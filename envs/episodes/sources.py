@@ -6,8 +6,16 @@ tracker, the part of a "mix") unless ``reset(options=...)`` pins them, so paired
 exactly the same episode. The generators: ``default_rng(noise_seed)`` the sim scenario and noise,
 ``(noise_seed, 0)`` the OTB sequence, ``(noise_seed, 1)`` the "otb" CMN, ``(noise_seed, 2)`` the tracker,
 ``(noise_seed, 3)`` the part of a "mix", ``(noise_seed, 4)`` the frame stride of an OTB training episode
-(``otb_speedup_max``) — independent streams, so adding trackers or a mix changes none of
-the others.
+(``otb_speedup_max``), ``(noise_seed, 5)`` the detection errors (``detection_dropout``, ``outlier_rate_range``:
+missed frames and wrong boxes, :mod:`envs.data.sim_detections`) — independent streams, so adding trackers, a
+mix or detection errors changes none of the others.
+
+Detection errors (sources "sim", "otb", "otb_tracker" and every part of "mix"; not "video" or "mot", whose
+detectors already miss) are added to an episode's measured boxes after its noise and before its nominal σ,
+which the OTB sources and ``sim_noise="box"`` take from the measured boxes — from what the agent sees. The
+episode's ``scenario`` gains their drawn ``miss_rate``, ``miss_run``, ``outlier_rate``
+(:meth:`envs.data.sim_detections.DetectionModel.parameters`). Without them (the defaults) nothing is drawn
+from stream 5 and every episode is what it was.
 
 An episode keeps what identifies it (``meta``: sequence, noise seed, τ, tracker — shown to the agent at
 reset) apart from the true scenario that generated its noise (``scenario``: ψ, σ_w, σ_ξ or the relative
@@ -29,12 +37,14 @@ import numpy as np
 
 from envs.data.boxes import cxcywh_to_xywh
 from envs.data.otb import OTBDataset, replay_synthetic, replay_tracker, split
+from envs.data.sim_detections import DetectionModel
 from envs.data.sim_regimes import simulate_nonstationary
 from envs.data.simulate import Scenario, ScenarioRanges, Track, simulate_each
 from envs.episodes.actions import K_AXIS, Nominal
 from envs.episodes.config import MIX_SOURCES, EnvConfig
 from envs.episodes.episode import Episode, Source, rule_nominal
 from envs.episodes.features import box_scale
+from envs.episodes.mot_source import MOTSource
 from envs.episodes.video_source import VideoSource
 from filters.horizon import rule_horizon
 
@@ -45,6 +55,19 @@ SPEEDUP_MIN_FRAMES = 64  # frames an OTB training episode keeps at the least whe
 def _log_uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
     lo, hi = lo_hi
     return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+
+def _detected(cfg: EnvConfig, noise_seeds: list[int], ys: list[np.ndarray], truths: list[np.ndarray]
+              ) -> tuple[list[np.ndarray], list[dict[str, float]]]:
+    """The measured boxes ``ys`` (equal lengths) of the episodes of ``noise_seeds`` with the config's detection
+    errors (module docstring), drawn together from each episode's ``default_rng((noise_seed, 5))``, and each
+    episode's drawn parameters for its ``scenario``; ``ys`` themselves and no parameters without errors."""
+    model = DetectionModel(cfg.detection_dropout, cfg.miss_rate_range, cfg.miss_run_range, cfg.outlier_rate_range)
+    if not model.active:
+        return ys, [{} for _ in ys]
+    drawn = model.draw([np.random.default_rng((seed, 5)) for seed in noise_seeds], len(ys[0]))
+    y, _, _ = model.apply(np.stack(ys), np.stack(truths), drawn)
+    return list(y), model.parameters(drawn)
 
 
 class SimSource(Source):
@@ -76,39 +99,54 @@ class SimSource(Source):
         rngs = [np.random.default_rng(seed) for seed in noise_seeds]
         scenarios = [self.ranges.sample(rng) for rng in rngs]
         if self.cfg.scenario == "nonstationary":
-            return [self._nonstationary(seed, scenario) for seed, scenario in zip(noise_seeds, scenarios)]
+            episodes = [self._nonstationary(seed, scenario) for seed, scenario in zip(noise_seeds, scenarios)]
+            ys, drawn = _detected(self.cfg, noise_seeds, [ep.y for ep in episodes], [ep.truth for ep in episodes])
+            return [replace(ep, y=y, scenario={**ep.scenario, **d}) for ep, y, d in zip(episodes, ys, drawn)]
         tracks = simulate_each(scenarios, rngs)
         horizons = rule_horizon(self.sigma_v_nominal, self.sigma_w_nominal, np.array([t.tau for t in tracks]), K_AXIS,
                                 max_horizon=self.cfg.horizon_max)
+        truths = [self._truth(scenario, track) for scenario, track in zip(scenarios, tracks)]
+        ys = [track.y for track in tracks]
+        if self.cfg.sim_noise == "box":
+            ys = [self._box_noise(seed, scenario.psi, track, truth)
+                  for seed, scenario, track, truth in zip(noise_seeds, scenarios, tracks, truths)]
+        ys, drawn = _detected(self.cfg, noise_seeds, ys, [track.truth for track in tracks])
         episodes = []
-        for seed, scenario, track, horizon in zip(noise_seeds, scenarios, tracks, horizons.tolist()):
+        for seed, scenario, track, horizon, y, truth, d in zip(noise_seeds, scenarios, tracks, horizons.tolist(), ys,
+                                                               truths, drawn):
             meta = {"sequence": None, "noise_seed": seed, "tau": scenario.tau}
-            truth = {"psi": scenario.psi, "sigma_w": scenario.sigma_w, "sigma_xi": scenario.sigma_xi}
-            if scenario.motion == "otb":  # σ_w: the rms true centre acceleration, the CV model's equivalent
-                acceleration = np.diff(track.truth_state[:, 4:6], axis=0) / track.tau
-                truth.update(sigma_w=float(np.sqrt(np.mean(acceleration**2))), motion="otb",
-                             velocity_rms=scenario.velocity_rms, size_rw=scenario.size_rw)
-            nominal = Nominal(sigma_w=self.sigma_w_nominal, sigma_v=self.sigma_v_nominal, psi=self.cfg.nominal_psi,
-                              horizon=horizon)
-            y = track.y
-            if self.cfg.sim_noise == "box":
-                y, nominal = self._box_noise(seed, scenario.psi, track, truth)
-            episodes.append(Episode(truth=track.truth, y=y, tau=track.tau, nominal=nominal, meta=meta, scenario=truth))
+            if self.cfg.sim_noise == "box":  # the OTB sources' nominal σ, relative to the measured box scale
+                scale = box_scale(y)
+                nominal = rule_nominal(self.cfg, self.cfg.otb_sigma_v_rel * scale, self.cfg.otb_sigma_w_rel * scale,
+                                       track.tau)
+            else:
+                nominal = Nominal(sigma_w=self.sigma_w_nominal, sigma_v=self.sigma_v_nominal, psi=self.cfg.nominal_psi,
+                                  horizon=horizon)
+            episodes.append(Episode(truth=track.truth, y=y, tau=track.tau, nominal=nominal, meta=meta,
+                                    scenario={**truth, **d}))
         return episodes
 
-    def _box_noise(self, seed: int, psi: float, track: Track, truth: dict[str, Any]) -> tuple[np.ndarray, Nominal]:
+    @staticmethod
+    def _truth(scenario: Scenario, track: Track) -> dict[str, Any]:
+        """The episode's true scenario (its ``scenario`` before ``sim_noise="box"`` and detection errors)."""
+        truth = {"psi": scenario.psi, "sigma_w": scenario.sigma_w, "sigma_xi": scenario.sigma_xi}
+        if scenario.motion == "otb":  # σ_w: the rms true centre acceleration, the CV model's equivalent
+            acceleration = np.diff(track.truth_state[:, 4:6], axis=0) / track.tau
+            truth.update(sigma_w=float(np.sqrt(np.mean(acceleration**2))), motion="otb",
+                         velocity_rms=scenario.velocity_rms, size_rw=scenario.size_rw)
+        return truth
+
+    def _box_noise(self, seed: int, psi: float, track: Track, truth: dict[str, Any]) -> np.ndarray:
         """``sim_noise="box"``: the measurements (T, 4) of the simulated truth, taken as the "otb" source measures
         OTB ground truth (:func:`envs.data.otb.replay_synthetic`: CMN of ψ and a σ_rel log-uniform in ``cmn_rel_range``, from
-        ``default_rng((seed, 1))``, scaled by the true box), with the OTB sources' nominal σ; ``truth`` gains
-        ``sigma_rel`` (its ``sigma_xi`` is then the unused absolute draw's, removed)."""
+        ``default_rng((seed, 1))``, scaled by the true box); ``truth`` gains ``sigma_rel`` (its ``sigma_xi`` is
+        then the unused absolute draw's, removed). The nominal σ are the OTB sources' (:meth:`draw_many`)."""
         rng = np.random.default_rng((seed, 1))
         sigma_rel = _log_uniform(rng, self.cfg.cmn_rel_range)
         measured = replay_synthetic(cxcywh_to_xywh(track.truth), psi=psi, sigma_rel=sigma_rel, rng=rng, tau=track.tau)
         truth.pop("sigma_xi")
         truth.update(sigma_rel=sigma_rel, noise="box")
-        scale = box_scale(measured.y)
-        return measured.y, rule_nominal(self.cfg, self.cfg.otb_sigma_v_rel * scale, self.cfg.otb_sigma_w_rel * scale,
-                                      measured.tau)
+        return measured.y
 
     def _nonstationary(self, seed: int, scenario: Scenario) -> Episode:
         """The nonstationary episode of ``seed`` around its drawn ``scenario`` (:mod:`envs.data.sim_regimes`)."""
@@ -222,9 +260,10 @@ class OTBSource(Source):
             boxes = self.dataset.tracker_boxes(tracker, name)
             track = replay_tracker(gt[frames], boxes[frames], tau=cfg.otb_tau)
             meta.update(tracker=tracker)
-        scale = box_scale(track.y)
+        (y,), (drawn,) = _detected(cfg, [noise_seed], [track.y], [track.truth])
+        scale = box_scale(y)
         nominal = rule_nominal(cfg, cfg.otb_sigma_v_rel * scale, cfg.otb_sigma_w_rel * scale, track.tau)
-        return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal, meta=meta, scenario=scenario)
+        return Episode(truth=track.truth, y=y, tau=track.tau, nominal=nominal, meta=meta, scenario={**scenario, **drawn})
 
     def _speedup(self, n_frames: int, noise_seed: int) -> slice:
         """The frames a training episode of ``n_frames`` plays (class docstring): every k-th from offset j."""
@@ -300,4 +339,6 @@ def make_source(cfg: EnvConfig) -> Source:
         return VideoSource(cfg)
     if cfg.source == "mix":
         return MixSource(cfg)
+    if cfg.source == "mot":
+        return MOTSource(cfg)
     return OTBSource(cfg)

@@ -26,9 +26,13 @@ def test_sim_episodes_are_split_seeds_and_otb_flags_are_refused() -> None:
 
 
 def test_the_second_oracle_is_of_the_other_metric() -> None:
-    names = lambda reward: [p.name for p in standard_policies("otb", GridSearch(budget=9), reward)]  # noqa: E731
+    names = lambda reward, source="otb", backend="ufir_cmn": [  # noqa: E731
+        p.name for p in standard_policies(source, GridSearch(budget=9), reward, backend=backend)]
     assert names("rmse") == ["rule", "rule_est_sigma", "oracle", "oracle_auc"]
     assert names("success_auc")[-2:] == ["oracle", "oracle_rmse"] and names("iou_precision")[-1] == "oracle_rmse"
+    assert names("rmse", "sim") == ["rule", "rule_est_sigma", "rule_true_sigma", "oracle", "oracle_auc"]
+    # bytetrack_kf's weights have no σ rule: its rule (stock ByteTrack) anchors the oracles alone
+    assert names("rmse", "sim", "bytetrack_kf") == ["rule", "oracle", "oracle_auc"]
 
 
 def test_raw_scores_the_measurements_and_missing_ones_as_missing_estimates() -> None:

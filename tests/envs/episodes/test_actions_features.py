@@ -7,7 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.episodes.actions import ACCEPTS, DEFAULT_TUNE, TUNABLE, ActionMap, Nominal
+import filters
+from envs.episodes.actions import (ACCEPTS, BACKENDS, DEFAULT_TUNE, SIGMA_PARAMETERS, STOCK, TUNABLE, ActionMap,
+                                   Nominal, parameter_family)
 from envs.episodes.features import FEATURE_NAMES, estimate_sigmas, measurement_features
 
 NOMINAL = Nominal(sigma_w=10.0, sigma_v=2.0, psi=0.0, horizon=24)
@@ -17,6 +19,42 @@ FULL = ActionMap(tune=("psi", "horizon", "sigma_w", "sigma_v"), K=2, horizon_max
 def test_default_tune_is_accepted_by_each_backend() -> None:
     for backend, tune in DEFAULT_TUNE.items():
         assert set(tune) <= set(ACCEPTS[backend])
+
+
+def test_the_back_ends_of_the_envs() -> None:
+    assert BACKENDS == (*filters.NAMES, "bytetrack_kf") and "sort_kf" not in BACKENDS  # sort_kf: nothing to tune
+    assert tuple(ACCEPTS) == tuple(DEFAULT_TUNE) == BACKENDS
+    assert all(parameter_family(b) == SIGMA_PARAMETERS for b in filters.NAMES)
+    assert parameter_family("bytetrack_kf") == ACCEPTS["bytetrack_kf"] == tuple(STOCK)
+    assert DEFAULT_TUNE["bytetrack_kf"] == ("std_weight_position", "std_weight_velocity")
+    assert STOCK == {"std_weight_position": 1 / 20, "std_weight_velocity": 1 / 160, "std_aspect_measurement": 0.1}
+
+
+BYTETRACK = ActionMap(tune=tuple(STOCK), K=2)
+
+
+def test_bytetrack_weights_are_stock_times_decades_and_stock_when_untuned() -> None:
+    p = BYTETRACK.to_params(np.array([[-1, -1, -1], [1, 1, 1], [0, 0.5, -0.5]]), NOMINAL)
+    for name, stock in STOCK.items():
+        np.testing.assert_allclose(p[name][:2], [stock * 10**-1.5, stock * 10**1.5])
+    np.testing.assert_allclose([p[k][2] for k in STOCK], [1 / 20, 10**0.75 / 160, 0.1 * 10**-0.75])
+    assert p["horizon"].tolist() == [24] * 3 and p["sigma_w"].tolist() == [10.0] * 3  # the others stay nominal
+    untuned = FULL.to_params(np.zeros(4), [NOMINAL])
+    assert {k: untuned[k].tolist() for k in STOCK} == {k: [v] for k, v in STOCK.items()}
+    assert NOMINAL.as_params()["std_weight_velocity"].tolist() == [1 / 160]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(-1.5, 1.5), st.floats(-1.5, 1.5), st.floats(-1.5, 1.5))
+def test_bytetrack_params_actions_round_trip(lp: float, lv: float, lm: float) -> None:
+    params = {k: stock * 10**e for (k, stock), e in zip(STOCK.items(), (lp, lv, lm))}
+    a = BYTETRACK.to_actions(params, NOMINAL)
+    np.testing.assert_allclose(a[0], np.array([lp, lv, lm]) / 1.5, atol=1e-12)
+    back = BYTETRACK.to_params(a.astype(np.float32), NOMINAL)  # policies emit float32
+    for k, v in params.items():
+        np.testing.assert_allclose(back[k][0], v, rtol=1e-5)
+    with pytest.raises(ValueError, match="std_weight_position"):
+        BYTETRACK.to_actions({**params, "std_weight_position": 1 / 20 * 10**1.6}, NOMINAL)
 
 
 def test_mapping_endpoints() -> None:

@@ -18,7 +18,7 @@ from tests.envs.conftest import OTB_ROOT, needs_otb
     ({"source": "otb", "otb_speedup_max": 2.0}, TypeError, "otb_speedup_max"),
     ({"source": "otb", "otb_speedup_max": True}, TypeError, "otb_speedup_max"),
     ({"source": "sim", "otb_speedup_max": 2}, ValueError, "otb_speedup_max=2 with source='sim'"),
-    ({"source": "video", "otb_speedup_max": 3}, ValueError, "only with source 'otb', 'otb_tracker' or 'mix'"),
+    ({"source": "video", "otb_speedup_max": 3}, ValueError, "only with source 'otb', 'otb_tracker', 'mix' .* or 'mot'"),
 ])
 def test_bad_speedup_is_named(kwargs: dict, error: type, match: str) -> None:
     with pytest.raises(error, match=match):
