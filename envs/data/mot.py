@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from envs.data import otb
+from envs.data import otb, textfile
 from envs.data.boxes import xywh_to_cxcywh
 from envs.data.metrics import iou
 from envs.data.mot_io import Detections, GroundTruth, read_detections, read_ground_truth, read_sequences_csv
@@ -70,14 +70,7 @@ class MOTIdentity:
 
 def resolve_root(root: str | os.PathLike | None) -> Path:
     """``root`` if given, else ``$MOT_ROOT``; ValueError when neither names an existing path."""
-    if root is None:
-        root = os.environ.get(MOT_ROOT_ENV) or None
-        if root is None:
-            raise ValueError(f"no MOT data location: pass --mot-root DIR (root=...) or set {MOT_ROOT_ENV}")
-    path = Path(root)
-    if not path.exists():
-        raise ValueError(f"MOT root {str(path)!r} does not exist")
-    return path
+    return textfile.data_root(root, MOT_ROOT_ENV, "MOT")
 
 
 def _check_threshold(iou_threshold: float) -> float:

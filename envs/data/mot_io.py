@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from envs.data import textfile
-from envs.data.number_grammar import MAX_NUMBER_CHARS, parse_float, shorten
+from envs.data.number_grammar import comma_values, parse_float, shorten
 from envs.data.otb_io import csv_int, read_csv_table, read_text
 
 MAX_FILE_BYTES = textfile.MAX_TEXT_BYTES  # read_text's limit; the largest MOT15 gt.txt is 0.3 MB
@@ -111,14 +111,7 @@ def _fast_rows(body: str) -> np.ndarray | None:
     n_lines = body.count("\n") + 1
     if body.encode("ascii").translate(None, _NUMBER_BYTES) != (_SEPARATORS + b"\n") * (n_lines - 1) + _SEPARATORS:
         return None
-    tokens = body.replace("\n", ",").split(",")
-    if max(map(len, tokens)) > MAX_NUMBER_CHARS:
-        return None
-    try:
-        values = np.array(list(map(float, tokens)), dtype=float)
-    except ValueError:  # an empty token or a misplaced sign, point or exponent
-        return None
-    return values.reshape(-1, N_COLUMNS) if np.isfinite(values).all() else None
+    return comma_values(body, N_COLUMNS)
 
 
 def _parse_line(line: str, where: str, layout: str) -> list[float]:

@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from envs.data import textfile
 from envs.data.boxes import xywh_to_cxcywh
 from envs.data.otb_io import csv_int, read_boxes, read_csv_table, read_pysot_json, video_of
 from envs.data.simulate import Track, gauss_markov
@@ -76,14 +77,7 @@ class OTBSequence:
 
 def resolve_root(root: str | os.PathLike | None) -> Path:
     """``root`` if given, else ``$OTB_ROOT``; ValueError when neither names an existing path."""
-    if root is None:
-        root = os.environ.get(OTB_ROOT_ENV) or None
-        if root is None:
-            raise ValueError(f"no OTB data location: pass --otb-root DIR (root=...) or set {OTB_ROOT_ENV}")
-    path = Path(root)
-    if not path.exists():
-        raise ValueError(f"OTB root {str(path)!r} does not exist")
-    return path
+    return textfile.data_root(root, OTB_ROOT_ENV, "OTB")
 
 
 def split(names: Iterable[str]) -> dict[str, tuple[str, ...]]:

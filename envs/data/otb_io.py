@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from envs.data import textfile
-from envs.data.number_grammar import MAX_NUMBER_CHARS, parse_float, parse_int, shorten
+from envs.data.number_grammar import MAX_NUMBER_CHARS, comma_values, parse_float, parse_int, shorten
 
 logger = logging.getLogger(__name__)
 
@@ -93,14 +93,7 @@ def _fast_boxes(body: str) -> np.ndarray | None:
     n_lines = body.count("\n") + 1
     if body.encode("ascii").translate(None, _NUMBER_BYTES) != b",,,\n" * (n_lines - 1) + b",,,":
         return None
-    tokens = body.replace("\n", ",").split(",")
-    if max(map(len, tokens)) > MAX_NUMBER_CHARS:
-        return None
-    try:
-        values = np.array(list(map(float, tokens)), dtype=float)
-    except ValueError:  # an empty token or a misplaced sign, point or exponent
-        return None
-    return values.reshape(-1, 4) if np.isfinite(values).all() else None
+    return comma_values(body, 4)
 
 
 def check_boxes(boxes: np.ndarray, locate: Callable[[int], str]) -> np.ndarray:

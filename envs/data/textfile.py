@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import stat
+from pathlib import Path
 
 MAX_TEXT_BYTES = 64 * 2**20  # text inputs: OTB100.json is 3.2 MB, config.yml / JSON run files a few kB
 
@@ -49,3 +50,16 @@ def read_text(path: str | os.PathLike, limit: int = MAX_TEXT_BYTES) -> str:
         raise ValueError(
             f"{path}:{line}: not UTF-8 text (byte 0x{data[err.start]:02x} at offset {err.start})"
         ) from None
+
+
+def data_root(root: str | os.PathLike | None, env_var: str, name: str) -> Path:
+    """A data set's folder: ``root`` if given, else ``$env_var``; ValueError when neither names an existing path
+    (``name``: the data set, e.g. "OTB", as the flag ``--<name>-root`` and the message say it)."""
+    if root is None:
+        root = os.environ.get(env_var) or None
+        if root is None:
+            raise ValueError(f"no {name} data location: pass --{name.lower()}-root DIR (root=...) or set {env_var}")
+    path = Path(root)
+    if not path.exists():
+        raise ValueError(f"{name} root {str(path)!r} does not exist")
+    return path
