@@ -4,8 +4,10 @@ Each test episode (an :class:`agents.splits.EpisodeSpec`, from :func:`evaluation
 pinned options; every policy chooses its action for it and each action is scored by ``env.unwrapped.score``
 (one call per action, so a method's scores never depend on which other methods are compared). Two methods are
 estimates of their own, scored on the same measurements with ``envs.episodes.scoring.score_estimates``: ``raw``, the
-measurements themselves (no filter), and the Sage–Husa adaptive KF (:mod:`agents.adaptive`). So all methods see
-identical data (common random numbers).
+measurements themselves (no filter), the box Kalman filters trackers ship with their published settings
+(:data:`PEERS`: ``bytetrack_kf``, ByteTrack / DeepSORT's, and ``sort_kf``, SORT's; :mod:`filters.bytetrack_kf`,
+:mod:`filters.sort_kf`), and the Sage–Husa adaptive KF (:mod:`agents.adaptive`). So all methods see identical data
+(common random numbers).
 
 A policy that leaves an episode alone (``Policy.leaves_alone``: the gated tuners of :mod:`agents.gate`) is scored
 there on the measurements themselves, exactly as ``raw``, with NaN parameters.
@@ -26,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
+import filters
 from agents.adaptive import SageHusaConfig, sage_husa_positions
 from agents.baselines import (AmortisedPolicy, EpisodePolicy, GlobalPolicy, GridSearch, OraclePolicy, Policy,
                               RuleEstimatedSigmaPolicy, RulePolicy, RuleTrueSigmaPolicy, sets_sigma_rule)
@@ -34,9 +37,10 @@ from agents.splits import EpisodeSpec, otb_episodes, split_seeds, train_seeds
 from envs.data import metrics
 from envs.data.boxes import cxcywh_to_xywh
 from envs.episodes.actions import parameter_family
-from envs.episodes.scoring import score_estimates
+from envs.episodes.scoring import detections, score_estimates
 
 RAW = "raw"
+PEERS = ("bytetrack_kf", "sort_kf")  # the practitioners' box filters, stock settings, scored beside every tuner
 ADAPTIVE = "adaptive"
 ADAPTIVE_TRUTH = "n"
 OTB_SOURCES = ("otb", "otb_tracker")  # sources whose test episodes are enumerated, not drawn
@@ -133,9 +137,9 @@ def evaluate(env: gym.Env, policies: Sequence[Policy], episodes: Sequence[Episod
     """Score ``raw``, ``policies`` and the adaptive KF (unless ``adaptive`` is None) on ``episodes``."""
     base = env.unwrapped
     backend, source = base.config.backend, base.config.source
-    names = [RAW] + [p.name for p in policies] + ([ADAPTIVE] if adaptive is not None else [])
+    names = [RAW, *PEERS] + [p.name for p in policies] + ([ADAPTIVE] if adaptive is not None else [])
     if len(set(names)) != len(names) or "rule" not in names:
-        raise ValueError(f"method names {names} must be distinct and include 'rule' (and not {RAW!r})")
+        raise ValueError(f"method names {names} must be distinct and include 'rule' (and not {RAW!r} or {PEERS})")
     if not episodes:
         raise ValueError("no episodes to evaluate")
     rows: list[dict[str, Any]] = []
@@ -149,9 +153,11 @@ def evaluate(env: gym.Env, policies: Sequence[Policy], episodes: Sequence[Episod
             p.begin_episode()
         actions = np.stack([p.act(obs, env) for p in policies])
         results = [None if p.leaves_alone(obs) else base.score(a[None]) for p, a in zip(policies, actions)]
-        estimates = [ep.y[None], *(ep.y[None] if r is None else r["estimates"] for r in results)]
+        peers = [filters.candidate_positions(peer, detections(peer, ep.y), ep.tau, {}) for peer in PEERS]
+        estimates = [ep.y[None], *peers, *(ep.y[None] if r is None else r["estimates"] for r in results)]
         keys = parameter_family(backend)
-        params = {k: np.array([np.nan, *(np.nan if r is None else float(r["params"][k][0]) for r in results)]) for k in keys}
+        params = {k: np.array([np.nan] * (1 + len(PEERS)) + [np.nan if r is None else float(r["params"][k][0])
+                                                            for r in results]) for k in keys}
         if adaptive is not None:
             estimates.append(sage_husa_positions(ep.y[None], ep.tau, ep.nominal.sigma_w, ep.nominal.sigma_v, adaptive))
             params = {k: np.append(v, np.nan) for k, v in params.items()}
@@ -179,7 +185,7 @@ def evaluate(env: gym.Env, policies: Sequence[Policy], episodes: Sequence[Episod
             })
         if i == 0:
             example = {"truth": ep.truth, "y": ep.y, "estimates": dict(zip(names, est)), "meta": meta}
-    truth = {RAW: "n", **{p.name: p.truth_at_test for p in policies}}
+    truth = {RAW: "n", **{peer: "n" for peer in PEERS}, **{p.name: p.truth_at_test for p in policies}}
     if adaptive is not None:
         truth[ADAPTIVE] = ADAPTIVE_TRUTH
     return Evaluation(rows=rows, success=success, precision=precision, example=example, truth_at_test=truth)

@@ -10,7 +10,7 @@ from envs.episodes.actions import ACCEPTS
 from filters.bytetrack_kf import SIZE_MIN
 
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
-POSITIVE_SIZES = ("bytetrack_kf",)  # back ends that take boxes with w, h >= SIZE_MIN only (they filter the aspect w / h)
+POSITIVE_SIZES = ("bytetrack_kf", "sort_kf")  # back ends that take boxes with w, h >= SIZE_MIN only (they filter the aspect w / h)
 
 
 def box_model(tau: float) -> filters.StateSpaceModel:

@@ -17,7 +17,7 @@ from agents.splits import eval_seeds, split_of, split_seeds
 from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
 
 REQUIRED = ("method", "episode", "sequence", "tracker", "rmse", "success_auc", "precision20")
-METHODS = {"raw", "rule", "rule_est_sigma", "rule_true_sigma", "oracle", "oracle_auc", "global", "amortised", "adaptive",
+METHODS = {"raw", "bytetrack_kf", "sort_kf", "rule", "rule_est_sigma", "rule_true_sigma", "oracle", "oracle_auc", "global", "amortised", "adaptive",
            "ppo", "ppo_best"}
 EPISODES = 6
 FAST = ["--train-episodes", "24", "--global-trials", "8", "--oracle-budget", "16", "--bootstrap", "50"]
