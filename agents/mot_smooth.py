@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.stock_filter import StockFilter
 from agents.tune import MIN_FRAMES, MIN_MEASURED, TAU_RANGE, Tuner
 from envs.data import textfile
 from envs.data.mot import match_identities, resolve_root
@@ -253,7 +254,7 @@ class Smoothed:
         return self.boxes is None
 
 
-def smooth_track(tuner: Tuner, track: IdentityTrack, tau: float) -> Smoothed:
+def smooth_track(tuner: Tuner | StockFilter, track: IdentityTrack, tau: float) -> Smoothed:
     """``track`` smoothed with the parameters ``tuner`` chooses from its boxes alone (module docstring)."""
     if track.too_short:
         return Smoothed(track, None, None)

@@ -192,6 +192,11 @@ class Tuner:
     def backend(self) -> str:
         return self.config.backend
 
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        """The back end's parameters this tuner sets (the keys of :meth:`params`)."""
+        return ACCEPTS[self.backend]
+
     def observe(self, boxes: ArrayLike, tau: Any) -> Observation:
         """The observation of the track ``boxes`` (T, 4) xywh at frame interval ``tau`` (s), as the env of the
         tuner's config computes it at reset (module docstring)."""

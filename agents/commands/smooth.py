@@ -9,7 +9,8 @@ tracker's boxes alone (never the ground truth).
 by the OTB readers (a malformed file stops the run with file:line, exit status 2, nothing written). Tuner:
 --model RUN_DIR (a scripts/train.py run of bboxtune/FilterTune-v0) or --pretrained NAME (agents/pretrained);
 neither: the pretrained tracker-output tuner otb_tracker_kf_cmn (gated: its gate leaves every sequence as
-read; --no-gate smooths them). --tau: the frame interval in s (default: the tuner's otb_tau, 1/30 s). Every
+read; --no-gate smooths them). No tuner: --filter bytetrack_kf / sort_kf, the box Kalman filter ByteTrack /
+DeepSORT or SORT ship, with its published settings (agents.stock_filter; for either format). --tau: the frame interval in s (default: the tuner's otb_tau, 1/30 s). Every
 sequence must have at least 8 frames, 2 of them with a box.
 
 --out (absent or empty; it appears complete or not at all) receives one <Sequence>.txt per input file, same
@@ -60,12 +61,12 @@ from agents import mot_smooth, pretrained
 from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, existing_dir, existing_file, float_range,
                         out_dir)
 from agents.commands.otb_eval import evaluate
+from agents.stock_filter import STOCK_FILTERS, StockFilter
 from agents.tune import DEFAULT_PRETRAINED, MIN_FRAMES, TAU_RANGE, Tuner, check_boxes, load_pretrained
 from agents.video_tables import csv_text, folder_in_use, publish_folder
 from envs.data.mot import MOT_ROOT_ENV
 from envs.data.otb import OTBDataset
 from envs.data.otb_io import read_boxes
-from envs.episodes.actions import ACCEPTS
 
 
 FORMAT_ONLY = {"--tau": "otb", "--otb-root": "otb", "--fps": "mot", "--mot-root": "mot"}
@@ -92,6 +93,9 @@ def build_parser() -> ArgumentParser:
     which.add_argument("--pretrained", default=None, metavar="NAME",
                        help=f"a pretrained tuner (installed: {', '.join(pretrained.available()) or 'none'}; "
                             f"default {DEFAULT_PRETRAINED})")
+    which.add_argument("--filter", choices=STOCK_FILTERS, default=None,
+                       help="no tuner: the box Kalman filter a tracker ships, with its published settings "
+                            "(ByteTrack / DeepSORT's or SORT's)")
     p.add_argument("--otb-root", default=None, metavar="ROOT",
                    help="otb: OTB data (any layout of otb_eval.py): score raw and smoothed results")
     p.add_argument("--tau", type=float_range(*TAU_RANGE), default=None, metavar="S",
@@ -147,8 +151,12 @@ def score_smoothed(otb_root: str, files: dict[str, str]) -> dict[str, float | in
         return score(otb_root, folder)
 
 
-def load_tuner(parser: ArgumentParser, args: argparse.Namespace) -> Tuner:
-    """The tuner of --model / --pretrained, gated as --gate / --no-gate say."""
+def load_tuner(parser: ArgumentParser, args: argparse.Namespace) -> Tuner | StockFilter:
+    """The tuner of --model / --pretrained, gated as --gate / --no-gate say, or the stock filter of --filter."""
+    if args.filter is not None:
+        if args.gate is not None or args.no_gate:
+            parser.error("--gate / --no-gate apply to a tuner, not to --filter")
+        return StockFilter(args.filter)
     with argument_errors(parser, "--model" if args.model else "--pretrained"):
         tuner = Tuner.from_run(args.model) if args.model else load_pretrained(args.pretrained or DEFAULT_PRETRAINED)
     if args.gate is not None:
@@ -165,7 +173,7 @@ def smooth_mot(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, st
         root = args.mot_root or os.environ.get(MOT_ROOT_ENV) or None
         rates = mot_smooth.frame_rates(inputs, args.fps, root)
     tuner = load_tuner(parser, args)
-    keys = ACCEPTS[tuner.backend]
+    keys = tuner.parameters
     files, table, done = {}, [], []
     for item, rate in zip(inputs, rates, strict=True):
         print(f"{item.name}: {len(item.tracks)} identities, {rate.fps:g} fps ({rate.source})"
@@ -205,7 +213,7 @@ def smooth_otb(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, st
         rows.append([path.stem, len(boxes), n_missing_in, n_missing_out, int(alone),
                      *(str(v) for v in params.values())])  # exact
     files["params.csv"] = csv_text(["sequence", "n_frames", "n_missing_in", "n_missing_out", "left_alone",
-                                    *ACCEPTS[tuner.backend]], rows)
+                                    *tuner.parameters], rows)
     left = sum(row[4] for row in rows)
     print(f"smoothed {len(results) - left} of {len(results)} sequences with {tuner.name} ({tuner.backend}, tau {tau:.4g} s)"
           + (f"; the gate left {left} as read" if tuner.gate is not None else ""))

@@ -425,3 +425,37 @@ def test_seqinfo_frame_rate_parses_as_the_reference_or_names_the_file(tmp_path_f
         return
     assert FPS_RANGE[0] <= fps <= FPS_RANGE[1]
     assert expected is None or fps == expected, (text, fps)
+
+
+@pytest.mark.parametrize("peer", ["bytetrack_kf", "sort_kf"])
+def test_stock_filter_in_the_tuners_place(tmp_path: Path, peer: str) -> None:
+    """--filter: the published filter smooths every track (nothing left alone, no parameters chosen)."""
+    from agents.commands import smooth as smooth_command
+    from agents.stock_filter import StockFilter
+
+    rows = [f"{f},1,{100 + 2 * f},50,30,60,0.9,-1,-1,-1" for f in range(1, 21) if f not in (8, 9, 10)]
+    results = tmp_path / "trk.txt"
+    results.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "out"
+    assert smooth_command.main(["--format", "mot", "--results", str(results), "--fps", "30", "--filter", peer,
+                                "--out", str(out)]) == 0
+    lines = (out / "trk.txt").read_text().splitlines()
+    assert [int(line.split(",")[0]) for line in lines] == list(range(1, 21))  # the gap 8-10 filled
+    assert all(line.split(",")[6] == "-1" for line in lines[7:10])
+    boxes = np.array([[100 + 2 * f, 50, 30, 60] if f not in (8, 9, 10) else [np.nan] * 4 for f in range(1, 21)], float)
+    expected = StockFilter(peer).smooth(boxes, 1 / 30)
+    written = np.array([[float(v) for v in line.split(",")[2:6]] for line in lines])
+    np.testing.assert_allclose(written, expected, atol=5e-4)
+    header = (out / "params.csv").read_text().splitlines()[0]
+    assert header.endswith("left_alone")  # no parameters chosen
+
+
+def test_stock_filter_refuses_a_gate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from agents.commands import smooth as smooth_command
+
+    (tmp_path / "trk.txt").write_text("1,1,10,10,5,5,1,-1,-1,-1\n")
+    with pytest.raises(SystemExit):
+        smooth_command.main(["--format", "mot", "--results", str(tmp_path / "trk.txt"), "--fps", "30",
+                             "--filter", "sort_kf", "--no-gate", "--out", str(tmp_path / "o")])
+    assert "--gate / --no-gate apply to a tuner" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
