@@ -18,7 +18,8 @@ output has no noise seed). --seed also seeds the baselines' training episodes, O
 bootstrap.
 
 Methods (agents.baselines, agents.adaptive): raw (the measurements themselves, no filter; a frame without a
-measurement is scored as a missing estimate: a failure for success AUC / precision, left out of the RMSE), rule
+measurement is scored as a missing estimate: a failure for success AUC / precision, left out of the RMSE),
+bytetrack_kf and sort_kf (the box filters ByteTrack / DeepSORT and SORT ship, published settings), rule
 (bytetrack_kf: stock ByteTrack), rule_est_sigma, rule_true_sigma (sim only; neither for bytetrack_kf), oracle
 (per-episode search maximising the env's reward with the truth), oracle_auc (maximising success AUC; oracle_rmse,
 minimising RMSE, when the reward is not RMSE), global, amortised, adaptive, the trained model (named by its
