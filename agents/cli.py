@@ -26,7 +26,9 @@ import argparse
 import json
 import math
 import os
-from collections.abc import Callable, Iterator
+import shlex
+import sys
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -159,6 +161,18 @@ def out_dir(text: str) -> Path:
         what = "is not writable" if existing == path else f"cannot be created: {existing} is not writable"
         raise argparse.ArgumentTypeError(f"{text} {what}")
     return path
+
+
+def outputs_taken(out: Path, names: Sequence[str]) -> str | None:
+    """The one-line error for an output folder ``out`` that already holds any of the files ``names`` (a script that
+    writes them refuses to overwrite them), or None."""
+    taken = [name for name in names if (out / name).exists()]
+    return f"error: --out {out} already holds {', '.join(taken)}; choose another folder" if taken else None
+
+
+def command_line(script: str, argv: list[str] | None) -> str:
+    """The command that ran ``scripts/<script>.py`` with ``argv`` (None: this process's arguments), shell-quoted."""
+    return shlex.join(["python", f"scripts/{script}.py", *(sys.argv[1:] if argv is None else argv)])
 
 
 def _read_text(path: Path) -> str:

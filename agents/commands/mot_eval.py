@@ -22,14 +22,13 @@ from __future__ import annotations
 
 import itertools
 import os
-import shlex
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from agents import mot_eval
-from agents.cli import ArgumentParser, existing_dir, out_dir
+from agents.cli import ArgumentParser, command_line, existing_dir, out_dir, outputs_taken
 from agents.tune import Tuner, load_pretrained
 from agents.video_tables import csv_text
 from envs.data import mot
@@ -107,11 +106,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="a pretrained tuner to score (repeatable; agents.pretrained)")
     parser.add_argument("--out", required=True, type=out_dir, help="output folder (created)")
     args = parser.parse_args(argv)
-    taken = [name for name in OUTPUTS if (args.out / name).exists()]
+    taken = outputs_taken(args.out, OUTPUTS)
     if taken:
-        print(f"error: --out {args.out} already holds {', '.join(taken)}; choose another folder", file=sys.stderr)
+        print(taken, file=sys.stderr)
         return 2
-    command = shlex.join(["python", "scripts/mot_eval.py", *(sys.argv[1:] if argv is None else argv)])
+    command = command_line("mot_eval", argv)
     try:
         scored = methods(args.model, args.pretrained)
         identities = mot.split(mot.load_identities(args.mot_root))[args.split]

@@ -28,7 +28,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from agents.cli import ArgumentParser, existing_dir, int_range, nonnegative_int, out_dir  # noqa: E402
+from agents.cli import (ArgumentParser, command_line, existing_dir, int_range, nonnegative_int, out_dir,  # noqa: E402
+                        outputs_taken)
 from agents.mot_fit import (  # noqa: E402
     MIN_LAG_PAIRS,
     NoiseStats,
@@ -188,11 +189,11 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"simulated episodes measured (default {DEFAULT_EPISODES})")
     parser.add_argument("--seed", type=nonnegative_int, default=0, help="first noise seed of the simulated episodes")
     args = parser.parse_args(argv)
-    taken = [name for name in OUTPUTS if (args.out / name).exists()]
+    taken = outputs_taken(args.out, OUTPUTS)
     if taken:
-        print(f"error: --out {args.out} already holds {', '.join(taken)}; choose another folder", file=sys.stderr)
+        print(taken, file=sys.stderr)
         return 2
-    command = shlex.join(["python", "scripts/mot_fit.py", *(sys.argv[1:] if argv is None else argv)])
+    command = command_line("mot_fit", argv)
     try:
         parts = mot.split(mot.load_identities(args.mot_root))
         empty = [part for part, identities in parts.items() if not identities]

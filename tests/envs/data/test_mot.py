@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -259,10 +258,7 @@ def test_matching_equals_a_frame_by_frame_reference(mot_root):
     assert (got[~gt.flag] == -1).all() and len(set(got[got >= 0].tolist())) == int((got >= 0).sum())
 
 
-def test_load_time_and_statistics(mot_root, mot15):
-    start = time.perf_counter()
-    load_identities(mot_root)
-    assert time.perf_counter() - start < 10  # about 0.5 s; the bound only catches a quadratic slip
+def test_statistics_of_the_data(mot15):
     summary = detection_stats(mot15).summary()
     assert summary["identities"] == 200 and 0.02 < summary["error_std_rel_cx"] < 0.1
     assert 0.3 < summary["lag1_corr_cx"] < 0.9 and 0 < summary["miss_rate_mean"] < 0.6
