@@ -163,11 +163,13 @@ def out_dir(text: str) -> Path:
     return path
 
 
-def outputs_taken(out: Path, names: Sequence[str]) -> str | None:
-    """The one-line error for an output folder ``out`` that already holds any of the files ``names`` (a script that
-    writes them refuses to overwrite them), or None."""
+def outputs_taken(out: Path, names: Sequence[str]) -> bool:
+    """Whether the output folder ``out`` already holds any of the files ``names``; if so, a script that writes them
+    refuses to overwrite them, and one error line naming them is printed to stderr."""
     taken = [name for name in names if (out / name).exists()]
-    return f"error: --out {out} already holds {', '.join(taken)}; choose another folder" if taken else None
+    if taken:
+        print(f"error: --out {out} already holds {', '.join(taken)}; choose another folder", file=sys.stderr)
+    return bool(taken)
 
 
 def command_line(script: str, argv: list[str] | None) -> str:

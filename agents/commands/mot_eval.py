@@ -106,9 +106,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="a pretrained tuner to score (repeatable; agents.pretrained)")
     parser.add_argument("--out", required=True, type=out_dir, help="output folder (created)")
     args = parser.parse_args(argv)
-    taken = outputs_taken(args.out, OUTPUTS)
-    if taken:
-        print(taken, file=sys.stderr)
+    if outputs_taken(args.out, OUTPUTS):
         return 2
     command = command_line("mot_eval", argv)
     try:

@@ -189,9 +189,7 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"simulated episodes measured (default {DEFAULT_EPISODES})")
     parser.add_argument("--seed", type=nonnegative_int, default=0, help="first noise seed of the simulated episodes")
     args = parser.parse_args(argv)
-    taken = outputs_taken(args.out, OUTPUTS)
-    if taken:
-        print(taken, file=sys.stderr)
+    if outputs_taken(args.out, OUTPUTS):
         return 2
     command = command_line("mot_fit", argv)
     try:

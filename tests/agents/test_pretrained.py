@@ -31,9 +31,9 @@ def test_each_tuner_loads_and_fits_the_env_of_its_config(name):
     cfg = load_config(pretrained.folder(name))
     kwargs = cfg["env_kwargs"]
     if kwargs.get("source") in OTB_SOURCES and not os.environ.get("OTB_ROOT"):
-        pytest.skip(f"{name}: source {kwargs['source']} needs the OTB data (set OTB_ROOT)")
+        pytest.skip(reason=f"{name}: source {kwargs['source']} needs the OTB data (set OTB_ROOT)")
     if kwargs.get("source") == "mot" and not os.environ.get("MOT_ROOT"):
-        pytest.skip(f"{name}: source mot needs the MOT15 data (set MOT_ROOT)")
+        pytest.skip(reason=f"{name}: source mot needs the MOT15 data (set MOT_ROOT)")
     tuner = load_pretrained(name)
     env = gym.make(cfg["env_id"], **kwargs).unwrapped
     model = tuner.policy.model

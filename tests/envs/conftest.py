@@ -18,5 +18,5 @@ MOT_ROOT = os.environ.get("MOT_ROOT")
 def mot_root() -> Path:
     """The MOT15 copy ``$MOT_ROOT``; the test is skipped when MOT_ROOT is unset."""
     if not MOT_ROOT:
-        pytest.skip("MOT_ROOT is unset: MOT15-backed cases need the MOT15 data (CI: MOT_ROOT=../shared/data/mot15)")
+        pytest.skip(reason="MOT_ROOT is unset: MOT15-backed cases need the MOT15 data (CI: MOT_ROOT=../shared/data/mot15)")
     return Path(MOT_ROOT)
