@@ -1,22 +1,22 @@
-"""bboxtune tuners: stable-baselines3 agents and non-learned baselines.
+"""bboxtune tuners: stable-baselines3 agents and the non-learned baselines, in four parts.
 
-* :mod:`agents.algos` — ``ALGOS`` (ppo, sac, td3, a2c); :mod:`agents.hyperparams` — YAML hyperparameters
-  (``agents/hyperparams/<algo>.yml``, RL Zoo layout).
-* :mod:`agents.baselines` — the policy interface and the rule / oracle / global / amortised baselines;
-  :mod:`agents.adaptive` — the Sage–Husa adaptive KF.
-* :mod:`agents.splits` — train / val / test noise-seed splits; :mod:`agents.episodes` — pinned episodes.
-* :mod:`agents.runs`, :mod:`agents.callbacks`, :mod:`agents.checkpoints` — run directories and checkpoints of
-  ``scripts/train.py``; :mod:`agents.safe_load`, :mod:`agents.run_files` — their files read without unpickling;
-  :mod:`agents.evaluate`, :mod:`agents.stats`, :mod:`agents.report`, :mod:`agents.plots` — ``scripts/compare.py``.
-* :mod:`agents.cli` — the scripts' argument checks (one-line errors, exit status 2); :mod:`agents.commands` —
-  the scripts' command lines (``scripts/<name>.py`` runs ``agents.commands.<name>.main``);
-  :mod:`agents.reproduce` — the papers' experiments of ``scripts/reproduce.py``; :mod:`agents.video_tables` —
-  output files and folders of the video commands.
-* :func:`tune` / :func:`smooth` (from :mod:`agents.tune`) — a trained tuner's parameters for a track of boxes,
-  and the track smoothed with them; :mod:`agents.pretrained` — the tuners shipped with the package, by name.
-  (``agents.tune`` is the function; the module is ``sys.modules["agents.tune"]`` / ``from agents.tune import …``.)
+* :mod:`bboxtune.agents.policies` — the rule, oracles, global search, the amortised regressor, adaptive KF, IMM.
+* :mod:`bboxtune.agents.training` — algorithms, YAML hyperparameters (``agents/hyperparams/<algo>.yml``, RL Zoo
+  layout), run directories, callbacks, checkpoints, the batched ``VecEnv``, sweeps, run files read without unpickling.
+* :mod:`bboxtune.agents.evaluation` — every method scored on the same episodes, statistics, reports and plots of
+  ``scripts/compare.py``, the gate and per-window regressors fitted on evaluated episodes, MOT15 evaluation.
+* :mod:`bboxtune.agents.smoothing` — :func:`tune` / :func:`smooth`: a trained tuner's parameters for a track of
+  boxes, and the track smoothed with them (:class:`bboxtune.agents.smoothing.tuner.Tuner`); the pretrained tuners
+  by name (:mod:`bboxtune.agents.smoothing.pretrained`).
+
+Below them: :mod:`bboxtune.agents.splits` (train / val / test noise seeds), :mod:`bboxtune.agents.episodes` (pinned
+episodes), :mod:`bboxtune.agents.readers` (JSON / YAML files read with errors that name the file) and
+:mod:`bboxtune.agents.cli` (the scripts' argument checks: one-line errors, exit status 2). Above them:
+:mod:`bboxtune.agents.commands` (the scripts' command lines: ``scripts/<name>.py`` runs
+``bboxtune.agents.commands.<name>.main``) and :mod:`bboxtune.agents.reproduce` (the papers' experiments of
+``scripts/reproduce.py``).
 """
 
-from agents.tune import smooth, tune
+from bboxtune.agents.smoothing.tuner import smooth, tune
 
 __all__ = ["smooth", "tune"]

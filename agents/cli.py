@@ -8,13 +8,13 @@ Every script validates its whole command line before it does any work or writes 
   defaults.
 * ``type=`` functions (argparse puts ``argument --flag:`` before their message): :func:`int_range`
   (:data:`positive_int`, :data:`nonnegative_int`), :func:`float_range` (:data:`positive_float`) — numbers in
-  the grammar of :mod:`envs.data.number_grammar` (ASCII decimals: no ``1_0``, no non-ASCII digits, no
+  the grammar of :mod:`bboxtune.envs.data.number_grammar` (ASCII decimals: no ``1_0``, no non-ASCII digits, no
   ``nan``/``inf``); :func:`existing_file`,
   :func:`existing_dir`, :func:`out_dir` (a folder that exists and is writable, or can be created; nothing
   is created here), :func:`json_file`, :func:`yaml_file` (parsed; errors name ``file:line:column``),
   :func:`box_xywh` (``x,y,w,h`` with w, h > 0).
-* :func:`read_json`, :func:`read_yaml` — the same readers for files a script finds itself (ValueError
-  naming ``file:line:column``); :func:`argument_errors` turns the ValueError / OSError of a semantic check
+* :func:`bboxtune.agents.readers.read_json`, :func:`~bboxtune.agents.readers.read_yaml` — the same readers for
+  files a script finds itself (ValueError naming ``file:line:column``); :func:`argument_errors` turns the ValueError / OSError of a semantic check
   (constructing a config, opening a dataset) into a one-line error naming the flag.
 * :func:`key_values` — ``KEY=VALUE`` / ``KEY:VALUE`` items (``--env-kwargs`` of train.py and compare.py,
   ``--hyperparams``) into a dict of YAML values.
@@ -23,8 +23,6 @@ Every script validates its whole command line before it does any work or writes 
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import os
 import shlex
 import sys
@@ -34,12 +32,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NoReturn
 
-import numpy as np
 import yaml
 
-from envs.data import textfile
-from envs.data.number_grammar import parse_float, parse_int, shorten
-from envs.data.otb import TRACKER_SPLIT
+from bboxtune.agents.readers import read_json, read_yaml
+from bboxtune.envs.data.number_grammar import parse_float, parse_int, shorten
+from bboxtune.envs.data.otb import TRACKER_SPLIT
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -108,7 +105,7 @@ def float_range(low: float | None = None, high: float | None = None, *,
 
 
 def _finite(text: str) -> float | None:
-    """The finite number ``text`` writes (:func:`envs.data.number_grammar.parse_float`), else None."""
+    """The finite number ``text`` writes (:func:`bboxtune.envs.data.number_grammar.parse_float`), else None."""
     try:
         return parse_float(text)
     except ValueError:
@@ -177,62 +174,6 @@ def command_line(script: str, argv: list[str] | None) -> str:
     return shlex.join(["python", f"scripts/{script}.py", *(sys.argv[1:] if argv is None else argv)])
 
 
-def _read_text(path: Path) -> str:
-    """The UTF-8 text of the regular file ``path`` (bounded, :mod:`envs.data.textfile`); ValueError naming it."""
-    return textfile.read_text(path)
-
-
-def _no_constant(name: str) -> NoReturn:
-    raise ValueError(f"non-standard JSON constant {name}")
-
-
-def read_json(path: Path) -> Any:
-    """Parse a JSON file (strict: ``NaN``/``Infinity`` are refused); ValueError ``file:line:column: why``."""
-    text = _read_text(Path(path))
-    try:
-        return json.loads(text, parse_constant=_no_constant)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
-    except ValueError as exc:  # a refused constant
-        raise ValueError(f"{path}: invalid JSON: {exc}") from None
-    except RecursionError:
-        raise ValueError(f"{path}: invalid JSON: nested too deeply") from None
-
-
-def json_number(doc: Any, key: str, path: Path | str, low: float = -math.inf, error: type[ValueError] = ValueError) -> float:
-    """``doc[key]`` of a parsed JSON object as a finite number >= ``low`` (not a bool); ``error`` naming ``path``."""
-    value = doc.get(key) if isinstance(doc, dict) else None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < low:
-        raise error(f"{path}: {key}={value!r}; expected a finite number >= {low:g}")
-    return float(value)
-
-
-def json_vector(doc: Any, key: str, size: int, path: Path | str, low: float = -math.inf, what: str = "",
-                error: type[ValueError] = ValueError) -> np.ndarray:
-    """``doc[key]`` of a parsed JSON object as ``size`` finite numbers >= ``low`` (float64); ``error`` naming ``path``
-    (and ``what`` the size is)."""
-    values = doc.get(key) if isinstance(doc, dict) else None
-    if not isinstance(values, list) or len(values) != size or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= low for v in values):
-        raise error(f"{path}: {key} must be a list of {size} finite numbers >= {low:g}{f' ({what})' if what else ''}")
-    return np.array(values, dtype=np.float64)
-
-
-def read_yaml(path: Path) -> Any:
-    """Parse a YAML file with ``yaml.safe_load``; ValueError ``file:line:column: why``."""
-    text = _read_text(Path(path))
-    try:
-        return yaml.safe_load(text)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
-        raise ValueError(f"{where}: invalid YAML: {exc.problem or exc.context}") from None
-    except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: invalid YAML: {' '.join(str(exc).split())}") from None
-    except RecursionError:
-        raise ValueError(f"{path}: invalid YAML: nested too deeply") from None
-
-
 def key_values(flag: str, items: list[str], separators: str = "=:") -> dict[str, Any]:
     """``KEY<sep>VALUE`` items as ``{KEY: yaml.safe_load(VALUE)}``: each item is split at its first character
     from ``separators`` (so ``otb_root=/a:b`` is ``otb_root`` → ``"/a:b"``, ``tune:[psi, horizon]`` a list);
@@ -260,7 +201,7 @@ def key_values(flag: str, items: list[str], separators: str = "=:") -> dict[str,
 
 
 def tracker_set(text: str) -> tuple[str, ...]:
-    """``--trackers``: ``train`` or ``test`` (the tracker split ``envs.data.otb.TRACKER_SPLIT``) or comma-separated
+    """``--trackers``: ``train`` or ``test`` (the tracker split ``bboxtune.envs.data.otb.TRACKER_SPLIT``) or comma-separated
     tracker names (checked against the OTB data when the env is built).
 
     >>> tracker_set("SiamFC,STRUCK"), tracker_set("test")

@@ -1,8 +1,8 @@
 """Pinned episodes of a ``FilterTune-v0`` env, kept in memory and scored in batches (for fitting baselines).
 
 :class:`EpisodeBank` resets the env once per noise seed, keeps the observation and the
-:class:`envs.episodes.sources.Episode`, and scores candidate actions with the env's public scoring functions
-(:mod:`envs.episodes.scoring`), so that many episodes can be revisited without resetting the env again. Its
+:class:`bboxtune.envs.episodes.sources.Episode`, and scores candidate actions with the env's public scoring functions
+(:mod:`bboxtune.envs.episodes.scoring`), so that many episodes can be revisited without resetting the env again. Its
 ``score(i, actions)`` returns the same numbers as ``env.unwrapped.score(actions)`` right after
 ``env.reset(options={"noise_seed": seeds[i]})`` (tested).
 """
@@ -17,9 +17,9 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-from envs.episodes.actions import ActionMap, Nominal
-from envs.episodes.episode import Episode
-from envs.episodes.scoring import reference_scores, reward_from, run_positions, score_estimates
+from bboxtune.envs.episodes.actions import ActionMap, Nominal
+from bboxtune.envs.episodes.episode import Episode
+from bboxtune.envs.episodes.scoring import reference_scores, reward_from, run_positions, score_estimates
 
 ScoreFn = Callable[[np.ndarray], dict[str, np.ndarray]]  # actions (A, d) -> {"reward": (A,), "rmse": (A,), ...}
 
@@ -42,7 +42,7 @@ class PinnedEpisode:
     noise_seed: int
     obs: np.ndarray  # (n_features,) float32, the env's observation
     episode: Episode
-    rule_scores: dict[str, float]  # the fixed rule's scores (``envs.episodes.scoring.SCORE_KEYS``)
+    rule_scores: dict[str, float]  # the fixed rule's scores (``bboxtune.envs.episodes.scoring.SCORE_KEYS``)
     reference_scores: dict[str, float]  # what the reward is measured against (the env's ``reward_baseline``)
 
 
@@ -84,7 +84,7 @@ class EpisodeBank:
         return score_estimates(run_positions(self.backend, ep.y, ep.tau, params), ep.truth)
 
     def score(self, i: int, actions: np.ndarray) -> dict[str, np.ndarray]:
-        """Scores of actions (A, d) on episode ``i``: ``reward`` and the ``envs.episodes.scoring`` keys, each (A,)."""
+        """Scores of actions (A, d) on episode ``i``: ``reward`` and the ``bboxtune.envs.episodes.scoring`` keys, each (A,)."""
         item = self.items[i]
         scores = self._scores(item.episode, np.atleast_2d(actions))
         return {"reward": reward_from(scores, item.reference_scores, self.reward_kind), **scores}

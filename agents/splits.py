@@ -32,7 +32,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs.episodes.config import SPLITS
+from bboxtune.envs.episodes.config import SPLITS
 
 TEST_BASE = 10**9
 VAL_BASE = 2 * 10**9
@@ -114,7 +114,7 @@ def otb_episodes(sequences: Sequence[str], trackers: Sequence[str], split: str, 
     pins = [(name, t) for name in sequences for t in trackers if has_output(t, name)] if trackers else \
         [(name, None) for name in sequences for _ in range(seeds_per_sequence)]
     seeds = split_seeds(split, len(pins), seed)
-    return [EpisodeSpec(int(s), name, t) for s, (name, t) in zip(seeds, pins)]
+    return [EpisodeSpec(int(s), name, t) for s, (name, t) in zip(seeds, pins, strict=False)]
 
 
 def split_of(noise_seed: int) -> str:

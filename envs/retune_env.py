@@ -6,26 +6,33 @@ from typing import Any
 
 import numpy as np
 
-import filters
-from envs.episodes.actions import ACCEPTS
-from envs.episodes.config import EnvConfig
-from envs.episodes.features import FEATURE_NAMES, WINDOW_FEATURE_NAMES, measurement_features, window_features
-from envs.episodes.scoring import (SCORE_KEYS, box_model, detections, hold_missing, reward_from, run_positions,
-                                   score_estimates)
-from envs.track_env import TrackEnv, check_reset_args
+from bboxtune import filters
+from bboxtune.envs.episodes.actions import ACCEPTS
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.features import FEATURE_NAMES, WINDOW_FEATURE_NAMES, measurement_features, window_features
+from bboxtune.envs.episodes.scoring import (
+    SCORE_KEYS,
+    box_model,
+    detections,
+    hold_missing,
+    reward_from,
+    run_positions,
+    score_estimates,
+)
+from bboxtune.envs.track_env import TrackEnv, check_reset_args
 
 
 class FilterRetuneEnv(TrackEnv):
     """
     ## Description
-    The track of :class:`envs.tune_env.FilterTuneEnv` is cut into windows of ``window`` = W frames
+    The track of :class:`bboxtune.envs.tune_env.FilterTuneEnv` is cut into windows of ``window`` = W frames
     (default 50). The first window is filtered with the fixed rule (a warm-up the agent observes); then
     each step sets the filter's parameters for the next window, the filter runs over it and the reward
     compares the window's estimates with the fixed rule's. The filter's memory carries over across windows:
 
     * Kalman family (kf, kf_cmn, ukf, bytetrack_kf): the posterior state and covariance at the window's last
       frame (and, for kf_cmn, the last measurement, needed for the differenced measurement) start the next
-      window, whose new σ/ψ (or weights) apply from its first frame on (:meth:`filters.base.Filter.run_from`).
+      window, whose new σ/ψ (or weights) apply from its first frame on (:meth:`bboxtune.filters.base.Filter.run_from`).
     * FIR family: the measurement buffer is the whole past, so a horizon change takes effect at once: the
       first estimate of the window already averages over the last N_new measurements (reaching back into
       earlier windows); nothing is re-initialised, and only while the track is shorter than N_new does the
@@ -33,14 +40,14 @@ class FilterRetuneEnv(TrackEnv):
 
     A frame where the filter has no estimate although it had one before (an FIR horizon holding too few
     measurements to determine the state, inside an occlusion gap longer than the horizon) shows the last
-    estimate, held (``envs.episodes.scoring.hold_missing``), for every candidate and the rule alike, so every
+    estimate, held (``bboxtune.envs.episodes.scoring.hold_missing``), for every candidate and the rule alike, so every
     candidate is scored on the same frames. (Before, such frames were left out of that candidate's RMSE: a short
     horizon through a gap skipped the frames where errors are largest. Measured on 100 non-stationary test
     episodes, W = 10: a per-window regressor left 0.6 such frames per episode unscored, 2.0 when it could see
     the coming window, the rule and the one-shot tuner none.)
 
     ## Action Space
-    As FilterTune-v0: ``Box(-1, 1, (d,), float32)`` mapped by ``envs.episodes.actions.ActionMap``; ``step`` takes
+    As FilterTune-v0: ``Box(-1, 1, (d,), float32)`` mapped by ``bboxtune.envs.episodes.actions.ActionMap``; ``step`` takes
     exactly one action of shape (d,), finite, within [-1, 1] (1e-6 float32 tolerance, clipped); anything
     else raises ``ValueError`` (``TypeError`` for a non-numeric dtype) and leaves the episode where it was.
 
@@ -51,9 +58,9 @@ class FilterRetuneEnv(TrackEnv):
 
     | index        | what                                                                                 | unit |
     |--------------|--------------------------------------------------------------------------------------|------|
-    | 0–19         | ``envs.episodes.features.FEATURE_NAMES`` on the last ``history`` frames before the window      | see there |
+    | 0–19         | ``bboxtune.envs.episodes.features.FEATURE_NAMES`` on the last ``history`` frames before the window      | see there |
     |              | (default 100; the fixed rule's estimates on them are the pilot residual)              |      |
-    | 20–23        | ``envs.episodes.features.WINDOW_FEATURE_NAMES``: the filter's residuals y − ŷ in the window just | –    |
+    | 20–23        | ``bboxtune.envs.episodes.features.WINDOW_FEATURE_NAMES``: the filter's residuals y − ŷ in the window just | –    |
     |              | filtered (log variance / scale², lag-1 autocorrelation, log variance minus the rule's, |      |
     |              | share of missing frames) — how the current parameters are doing                      |      |
     | 24 … 23 + d  | the current action (the rule's after the warm-up)                                     | [-1, 1] |
@@ -71,7 +78,7 @@ class FilterRetuneEnv(TrackEnv):
     ``"offline"`` is for smoothing a recorded track (a tracker's saved results), where every measurement exists
     before the filter runs: the filter itself stays causal, but the tuner may look ahead at the measurements (a
     gap, a manoeuvre, a drifting stretch to come) — the information of the offline one-shot tuner
-    (``oneshot_learned`` in ``agents.retune_eval``), plus where in the track it is.
+    (``oneshot_learned`` in ``bboxtune.agents.evaluation.retune_eval``), plus where in the track it is.
 
     ## Rewards
     The env's reward (as FilterTune-v0: ``rmse`` → log(RMSE_rule / RMSE), others action minus rule, against
@@ -110,22 +117,23 @@ class FilterRetuneEnv(TrackEnv):
     (start, end) and ``track`` (as at reset); the last step adds ``track_rmse`` and ``track_rule_rmse``
     over the whole track and ``scenario``, the true scenario (as in FilterTune-v0; with
     ``scenario="nonstationary"`` also the switch times and regimes, manoeuvres and gaps,
-    :mod:`envs.data.sim_regimes`). The truth comes only with the last step because every step is a decision about
+    :mod:`bboxtune.envs.data.sim_regimes`). The truth comes only with the last step because every step is a decision about
     the same track: revealing it earlier would hand it to the later decisions.
 
     ## Arguments
-    Those of FilterTune-v0 (``envs.episodes.config.EnvConfig``, checked the same way; ``trackers``, ``mix_weights``
+    Those of FilterTune-v0 (``bboxtune.envs.episodes.config.EnvConfig``, checked the same way; ``trackers``, ``mix_weights``
     and ``source="mix"`` included: every part of a mix draws episodes of at least two windows, and the sim
     part's ``track_length`` must allow that); ``window``, ``history``, ``retune_reward`` and ``retune_view`` are used
     here.
     ``scenario="nonstationary"`` gives simulated tracks whose right parameters change within the track
-    (regime switches of ψ and σ_ξ, manoeuvre bursts, occlusion gaps: :mod:`envs.data.sim_regimes`), where
+    (regime switches of ψ and σ_ξ, manoeuvre bursts, occlusion gaps: :mod:`bboxtune.envs.data.sim_regimes`), where
     re-tuning has something to gain. ``detection_dropout``, ``miss_rate_range``, ``miss_run_range`` and
     ``outlier_rate_range`` add a real detection stream's missed frames and wrong boxes to the episodes as in
     FilterTune-v0 (a window may then hold few or no measurements; the drawn rates come with the last step's
     ``info["scenario"]``).
 
-    >>> import gymnasium as gym, envs
+    >>> import gymnasium as gym
+    >>> from bboxtune import envs
     >>> env = gym.make("bboxtune/FilterRetune-v0", backend="kf_cmn", track_length=200, window=50)
     >>> obs, info = env.reset(seed=1)
     >>> obs.shape
@@ -191,7 +199,7 @@ class FilterRetuneEnv(TrackEnv):
     def _run_window(self, params: dict[str, np.ndarray], carry: Any, end: int | None = None) -> tuple[np.ndarray, Any]:
         """Estimates (A, w, 4) of the current window (or, with ``end``, of the frames from its start to ``end``)
         for candidates ``params`` (arrays (A,)), continuing from ``carry`` (the back end's: a Kalman state or the
-        FIR family's measurement history, :meth:`filters.base.Filter.run_from`), and the carry after them."""
+        FIR family's measurement history, :meth:`bboxtune.filters.base.Filter.run_from`), and the carry after them."""
         ep = self.episode
         start, window_end = self._window_bounds()
         end = window_end if end is None else end
@@ -242,7 +250,8 @@ class FilterRetuneEnv(TrackEnv):
         start to the track's end (continuing from the current filter state, in one vectorised run; the same as
         stepping with the action to the end): ``reward`` (what stepping to the end would return in all: with
         "track" rewards the change of the track's reward, else the reward on those frames), the
-        ``envs.episodes.scoring.SCORE_KEYS`` scores on those frames, ``params`` and ``estimates`` (A, T − start, 4). Does not advance
+        ``bboxtune.envs.episodes.scoring.SCORE_KEYS`` scores on those frames, ``params`` and ``estimates`` (A, T −
+        start, 4). Does not advance
         the episode. One-shot tuning (one action from now on) is a search over this."""
         if self.episode is None or self._start >= len(self.episode.y):
             raise RuntimeError("no window to score: call reset()")
@@ -252,7 +261,7 @@ class FilterRetuneEnv(TrackEnv):
         return self._score_window(est, params, self._start, end)
 
     def features_so_far(self) -> np.ndarray:
-        """The FilterTune-v0 observation (``envs.episodes.features.FEATURE_NAMES``) of every frame filtered so far,
+        """The FilterTune-v0 observation (``bboxtune.envs.episodes.features.FEATURE_NAMES``) of every frame filtered so far,
         [0, ``window_start``): the whole track's features as a one-shot tuner would see them if the track ended here
         (measurement-only; the pilot residual against the rule's estimates on those frames)."""
         if self.episode is None:

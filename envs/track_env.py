@@ -16,12 +16,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from envs.episodes.actions import ACCEPTS, K_AXIS, ActionMap
-from envs.episodes.config import EnvConfig
-from envs.episodes.episode import Episode
-from envs.episodes.features import FEATURE_NAMES
-from envs.episodes.sources import make_source
-from envs.render import draw_episode
+from bboxtune.envs.episodes.actions import ACCEPTS, K_AXIS, ActionMap
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.episode import Episode
+from bboxtune.envs.episodes.features import FEATURE_NAMES
+from bboxtune.envs.episodes.sources import make_source
+from bboxtune.envs.render import draw_episode
 
 RESET_OPTIONS = ("sequence", "noise_seed", "tracker")
 

@@ -7,11 +7,18 @@ from typing import Any
 
 import numpy as np
 
-from envs.episodes.features import measurement_features
-from envs.episodes.scoring import (SCORE_KEYS, reference_scores, reward_from, run_positions, run_tracks, score_estimates,
-                           score_tracks)
-from envs.episodes.episode import Episode
-from envs.track_env import TrackEnv, check_reset_args
+from bboxtune.envs.episodes.episode import Episode
+from bboxtune.envs.episodes.features import measurement_features
+from bboxtune.envs.episodes.scoring import (
+    SCORE_KEYS,
+    reference_scores,
+    reward_from,
+    run_positions,
+    run_tracks,
+    score_estimates,
+    score_tracks,
+)
+from bboxtune.envs.track_env import TrackEnv, check_reset_args
 
 
 class FilterTuneEnv(TrackEnv):
@@ -21,14 +28,15 @@ class FilterTuneEnv(TrackEnv):
     measurement noise (``source="sim"``), OTB-100 ground truth corrupted with such noise (``"otb"``), a
     real tracker's OTB-100 output (``"otb_tracker"``; the tracker drawn per episode from ``trackers``), a
     detector's boxes on a synthetic video (``"video"``) or, per episode, one of sim / otb / otb_tracker
-    drawn with ``mix_weights`` (``"mix"``: one policy for all three). The agent sees a summary of the *measurements* and chooses the smoothing filter's
+    drawn with ``mix_weights`` (``"mix"``: one policy for all three). The agent sees a summary of the *measurements*
+    and chooses the smoothing filter's
     parameters (ψ, horizon N, noise scales) for the whole track; the filter (``backend``) then runs over the
     track and the reward compares it with the fixed rule of the literature (N = N_opt(σ_v, σ_w, τ) with
     nominal σ, ψ = ``nominal_psi``; for ``bytetrack_kf`` the stock ByteTrack filter) on the same measurements.
 
     ## Action Space
     ``Box(-1, 1, (d,), float32)``, one entry per name in ``tune`` (default per back end:
-    ``envs.episodes.actions.DEFAULT_TUNE``, e.g. ``("psi", "horizon")`` for ``ufir_cmn``):
+    ``bboxtune.envs.episodes.actions.DEFAULT_TUNE``, e.g. ``("psi", "horizon")`` for ``ufir_cmn``):
 
     | parameter              | mapping from a ∈ [-1, 1]                          | range                   |
     |------------------------|---------------------------------------------------|-------------------------|
@@ -41,7 +49,7 @@ class FilterTuneEnv(TrackEnv):
     | std_aspect_measurement | s_m = stock · 10^(1.5 a), stock 0.1               | stock · [0.03, 31.6]    |
 
     The last three are ``backend="bytetrack_kf"``'s (ByteTrack's / DeepSORT's box Kalman filter,
-    :mod:`filters.bytetrack_kf`): its two std weights (noise relative to the box height; the default ``tune``)
+    :mod:`bboxtune.filters.bytetrack_kf`): its two std weights (noise relative to the box height; the default ``tune``)
     and, on request (``tune=(..., "std_aspect_measurement")``), the aspect ratio's measurement std. Their
     nominal is ByteTrack's published value in every episode, so the rule's action is stock ByteTrack and the
     reward (``reward_baseline="rule"``) is the gain over it. Scaling both weights by one factor scales the
@@ -50,7 +58,7 @@ class FilterTuneEnv(TrackEnv):
     default sim episodes, whose aspect noise σ_ξ / size varies widely: 0.05 with the weights, 0.13 with s_m too;
     over 60 MOT15 pedestrian episodes 0.17 either way). ``sort_kf`` has no parameters to tune and is not a back end of the envs.
 
-    ``envs.episodes.actions.ActionMap`` implements it both ways (``to_params`` / ``to_actions``). ``step`` takes
+    ``bboxtune.envs.episodes.actions.ActionMap`` implements it both ways (``to_params`` / ``to_actions``). ``step`` takes
     exactly one action of shape (d,): any other shape (a batch (A, d) included) raises ``ValueError``, as do
     NaN/inf entries and entries outside [-1, 1] (entries within 1e-6 of it are accepted as float32
     round-off and clipped — nothing else is clipped); a non-numeric or bool dtype raises ``TypeError``.
@@ -71,7 +79,7 @@ class FilterTuneEnv(TrackEnv):
 
     ## Observation Space
     ``Box(-inf, inf, (20,), float32)``: features of the measured boxes only, never the truth or the true
-    ψ/σ — the table in ``envs.episodes.features`` (log box scale [log px], log τ [log s], log-variances of first and
+    ψ/σ — the table in ``bboxtune.envs.episodes.features`` (log box scale [log px], log τ [log s], log-variances of first and
     second differences of centre and size relative to scale², lag-1..3 autocorrelations of the differences,
     log N_opt from nominal and from estimated σ [log frames], the σ estimates, residual statistics of the
     fixed-rule filter, fraction of missing frames, log T).
@@ -88,7 +96,8 @@ class FilterTuneEnv(TrackEnv):
     ## Starting State
     ``reset`` draws an episode: for ``sim`` a scenario (ψ ~ U(psi_range), σ_w, σ_ξ log-uniform over their
     ranges, τ ~ U(tau_range)) and its noise (``sim_noise="box"``: the ``otb`` source's box-relative CMN on the
-    simulated truth, σ_rel log-uniform over ``cmn_rel_range``, with the OTB sources' nominal σ); for OTB sources a sequence of ``split`` (and for ``otb`` the
+    simulated truth, σ_rel log-uniform over ``cmn_rel_range``, with the OTB sources' nominal σ); for OTB sources a
+    sequence of ``split`` (and for ``otb`` the
     CMN level and ψ; for ``otb_tracker`` first the tracker, uniformly from ``trackers``, then a sequence it
     has output for); for ``mix`` first the part (sim / otb / otb_tracker, probabilities ∝ ``mix_weights``),
     then that part's episode of the same noise seed. ``reset(options={"sequence": name, "noise_seed": s,
@@ -108,7 +117,7 @@ class FilterTuneEnv(TrackEnv):
 
     Every episode is a pure function of its noise seed (and sequence, tracker); without options the seed is
     the next draw from ``np_random``; the sequence, tracker and mix part come from independent generators
-    seeded with it (``envs.episodes.sources``), so passing ``info["track"]``'s sequence, noise_seed and tracker as
+    seeded with it (``bboxtune.envs.episodes.sources``), so passing ``info["track"]``'s sequence, noise_seed and tracker as
     options replays it. For speed the ``sim`` source draws and prepares (simulation, rule run, rule
     scores, observation) a block of up to 64 unpinned episodes at once — batched over the block — and hands
     them out one per reset: the episodes, their order and every value are the same as one at a time (the
@@ -130,19 +139,20 @@ class FilterTuneEnv(TrackEnv):
     arrays (A,) plus ``reward``. A step after the end raises ``RuntimeError`` (call ``reset``).
 
     ## Arguments
-    Keyword arguments of ``gym.make`` are the fields of ``envs.episodes.config.EnvConfig`` plus ``render_mode``
+    Keyword arguments of ``gym.make`` are the fields of ``bboxtune.envs.episodes.config.EnvConfig`` plus ``render_mode``
     (``None`` or ``"rgb_array"``). Each is checked by type and range (its comment there states the allowed
     values): an unknown key or a wrong type raises ``TypeError``, a value out of range ``ValueError``, both
     naming the argument. ``track_length`` (sim and video) is at most 100,000 frames
-    (``envs.episodes.config.TRACK_LENGTH_MAX``); simulated box sizes are reflected at ``box_size_bounds`` (default
-    4 to 1000 px, ``envs.data.simulate``), so they stay plausible at any length.
+    (``bboxtune.envs.episodes.config.TRACK_LENGTH_MAX``); simulated box sizes are reflected at ``box_size_bounds`` (default
+    4 to 1000 px, ``bboxtune.envs.data.simulate``), so they stay plausible at any length.
 
-    ``backend``: one of ``envs.episodes.actions.BACKENDS`` — the eight of ``filters.NAMES`` and ``"bytetrack_kf"``
-    (Action Space); ``tune`` names parameters of ``envs.episodes.actions.ACCEPTS[backend]``.
+    ``backend``: one of ``bboxtune.envs.episodes.actions.BACKENDS`` — the eight of ``bboxtune.filters.NAMES`` and
+    ``"bytetrack_kf"``
+    (Action Space); ``tune`` names parameters of ``bboxtune.envs.episodes.actions.ACCEPTS[backend]``.
 
     ``trackers`` (``otb_tracker``, ``mix``): the tracker names an episode's tracker is drawn from (each must
     exist under the OTB root; None → ``(tracker,)``, the single-tracker env of before). The default tracker
-    split is ``envs.data.otb.TRACKER_SPLIT``: ``"test"`` = SiamRPN++, CFNet, STRUCK, MDNet (held out, never
+    split is ``bboxtune.envs.data.otb.TRACKER_SPLIT``: ``"test"`` = SiamRPN++, CFNet, STRUCK, MDNet (held out, never
     trained on), ``"train"`` = the other 9. ``mix_weights`` (sim, otb, otb_tracker), default (1, 1, 1):
     each part's relative probability (reals >= 0, sum > 0; a part of weight 0 is never drawn and needs no
     data — OTB parts need ``otb_root`` / $OTB_ROOT). Arguments the source would not use are refused, not
@@ -160,7 +170,7 @@ class FilterTuneEnv(TrackEnv):
     σ_w, σ_ξ per track; ``"nonstationary"`` keeps that draw as the first regime and adds, within the track,
     1–3 switches of ψ and σ_ξ (redrawn from ``psi_range`` / ``sigma_xi_range``, at frames in [T/10, 9T/10)),
     0–3 manoeuvre bursts (σ_w × 10 for 20–100 frames) and 0–2 occlusion gaps (5–30 missing frames), all at
-    random times (:mod:`envs.data.sim_regimes`). The schedule is revealed with the truth, in the step's
+    random times (:mod:`bboxtune.envs.data.sim_regimes`). The schedule is revealed with the truth, in the step's
     ``info["scenario"]`` (``regimes``, ``manoeuvres``, ``gaps``; ``psi`` / ``sigma_xi`` there are the
     frame-weighted mean ψ and rms σ_ξ), never in the observation.
 
@@ -177,14 +187,15 @@ class FilterTuneEnv(TrackEnv):
     factor (log std 0.3), its centre 0.5–2 box heights away in a random direction (any ``detection_dropout``).
     A missed frame is a NaN row of the measurements (the filters predict through it; the truth is scored as
     before); the first and last measured frames always stay. The errors come from the episode's own generator
-    ``(noise_seed, 5)`` (``envs.episodes.sources``): the episode is still a pure function of its seed, and the
+    ``(noise_seed, 5)`` (``bboxtune.envs.episodes.sources``): the episode is still a pure function of its seed, and the
     nominal σ of the OTB sources and ``sim_noise="box"`` come from the measurements left. The drawn
     ``miss_rate``, ``miss_run`` and ``outlier_rate`` are revealed in the step's ``info["scenario"]``; the
-    observation's fraction of missing frames shows what was missed. Details: :mod:`envs.data.sim_detections`.
+    observation's fraction of missing frames shows what was missed. Details: :mod:`bboxtune.envs.data.sim_detections`.
     A range that would not be used is refused, not ignored (``miss_rate_range`` without dropout,
     ``miss_run_range`` without ``"runs"``).
 
-    >>> import gymnasium as gym, envs
+    >>> import gymnasium as gym
+    >>> from bboxtune import envs
     >>> env = gym.make("bboxtune/FilterTune-v0", backend="ufir_cmn", source="sim", track_length=300)
     >>> obs, info = env.reset(seed=0)
     >>> obs.shape, env.action_space.shape, sorted(info["track"])
@@ -213,8 +224,8 @@ class FilterTuneEnv(TrackEnv):
       prepares one episode of its block, the rest at the next reset (the same episodes; ~27× → ~2.4× the cost
       of an unseeded reset in ``scripts/bench_env.py``).
     * v0, batched (no change to any FIR-family episode; Kalman-family values move by ~1e-15 relative): the
-      registered ``vector_entry_point`` :class:`envs.vector.TuneVectorEnv` (``gym.make_vec`` /
-      ``envs.make_vec``: n tracks per step in one batch); the fixed rule of ``kf`` / ``kf_cmn`` runs in frame
+      registered ``vector_entry_point`` :class:`bboxtune.envs.vector.TuneVectorEnv` (``gym.make_vec`` /
+      ``bboxtune.envs.make_vec``: n tracks per step in one batch); the fixed rule of ``kf`` / ``kf_cmn`` runs in frame
       units, so a block of tracks with different τ shares one filter call.
     * v0, ``reward_baseline`` (default ``"rule"``: no change to any reward) and ``sim_noise`` (default
       ``"absolute"``: no change to any episode).
@@ -315,7 +326,7 @@ class FilterTuneEnv(TrackEnv):
     def step_info(self, result: dict[str, Any], row: int = 0, prepared: tuple[Episode, dict[str, Any]] | None = None
                   ) -> dict[str, Any]:
         """The step's ``info`` for candidate ``row`` of ``result`` (:meth:`score`'s keys) on the current episode
-        or on ``prepared`` = (episode, rule run) (a batch of episodes, :mod:`envs.vector`)."""
+        or on ``prepared`` = (episode, rule run) (a batch of episodes, :mod:`bboxtune.envs.vector`)."""
         episode, rule = prepared or (self.episode, self._rule)
         info: dict[str, Any] = {k: float(result[k][row]) for k in SCORE_KEYS}
         info.update({f"rule_{k}": rule["scores"][k] for k in SCORE_KEYS})

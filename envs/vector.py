@@ -3,24 +3,24 @@
 FilterTune-v0 is a contextual bandit (one step per track), so n envs step in lockstep and all auto-reset after
 every step. :class:`TuneBatch` does that work once for all n tracks — one vectorised simulation
 (``Source.draw_many``), one run of the fixed rule and one feature pass (``FilterTuneEnv.prepare``), one
-batched filter run of the n actions (``envs.episodes.scoring.run_tracks``: one call per track length; the FIR family
+batched filter run of the n actions (``bboxtune.envs.episodes.scoring.run_tracks``: one call per track length; the FIR family
 and the Kalman filters run in frame units, so tracks of different τ share it) and one scoring pass — where n
 separate envs would each pay for their own Python loop over time. Two faces over it:
 
 * :class:`TuneVectorEnv`, a Gymnasium ``VectorEnv`` with same-step auto-reset, registered as the env's
-  ``vector_entry_point``: ``envs.make_vec(env_id, n, **kwargs)`` = ``gym.make_vec(env_id, num_envs=n,
+  ``vector_entry_point``: ``bboxtune.envs.make_vec(env_id, n, **kwargs)`` = ``gym.make_vec(env_id, num_envs=n,
   **kwargs)``; the finished episode's observation and step info are in ``infos["final_obs"]`` /
   ``infos["final_info"]``;
-* ``agents.batched.TuneVecEnv``, the stable-baselines3 ``VecEnv`` that ``scripts/train.py --vec batched``
-  trains on (``agents.runs.make_vec``; kept in ``agents`` so that ``import envs`` needs no torch).
+* ``bboxtune.agents.training.batched.TuneVecEnv``, the stable-baselines3 ``VecEnv`` that ``scripts/train.py --vec batched``
+  trains on (``bboxtune.agents.training.runs.make_vec``; kept in ``agents`` so that ``import envs`` needs no torch).
 
 Every step's info (per env) is what ``FilterTuneEnv.step`` returns for that track. Episodes are drawn as by
 the single env — each a pure function of its noise seed — but the noise seeds come from the batch's own
 generator (seeded by ``reset(seed=...)``), n at a time, through ``noise_seeds(rng, n)``: by default uniform on
-[0, 2⁶²) like the env's own draws (``agents.splits.train_seeds`` for the train split in training). Pinned
+[0, 2⁶²) like the env's own draws (``bboxtune.agents.splits.train_seeds`` for the train split in training). Pinned
 episodes (reset options) are the single env's job; ``render_mode`` is not supported.
 
->>> import envs
+>>> from bboxtune import envs
 >>> venv = envs.make_vec("bboxtune/FilterTune-v0", 4, backend="ufir_cmn", track_length=200)
 >>> obs, infos = venv.reset(seed=0)
 >>> obs.shape, sorted(infos["track"])
@@ -40,8 +40,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs.episodes.scoring import SCORE_KEYS, reward_from, run_tracks, score_tracks
-from envs.tune_env import FilterTuneEnv
+from bboxtune.envs.episodes.scoring import SCORE_KEYS, reward_from, run_tracks, score_tracks
+from bboxtune.envs.tune_env import FilterTuneEnv
 
 TUNE_ID = "bboxtune/FilterTune-v0"
 BATCHED_IDS = (TUNE_ID,)  # env ids with a batched vector env
@@ -55,7 +55,7 @@ def any_noise_seeds(rng: np.random.Generator, n: int) -> np.ndarray:
 
 class TuneBatch:
     """n FilterTune-v0 episodes at once: :meth:`reset` draws and prepares n new tracks, :meth:`step` scores one
-    action per track. ``env_kwargs`` are ``gym.make``'s (``envs.episodes.config.EnvConfig`` fields), checked the same
+    action per track. ``env_kwargs`` are ``gym.make``'s (``bboxtune.envs.episodes.config.EnvConfig`` fields), checked the same
     way; ``self.env`` is the single env whose configuration, source and rule the batch uses."""
 
     def __init__(self, n_envs: int, noise_seeds: NoiseSeeds = any_noise_seeds, **env_kwargs: Any) -> None:
@@ -130,9 +130,9 @@ class TuneVectorEnv(VectorEnv):
         if self._obs is None:
             raise RuntimeError("call reset() before step()")
         rewards, infos = self.batch.step(actions)
-        finished = [{"final_obs": last, "final_info": info} for last, info in zip(self._obs, infos)]
+        finished = [{"final_obs": last, "final_info": info} for last, info in zip(self._obs, infos, strict=False)]
         self._obs, reset_infos = self.batch.reset()
-        merged = self._merge([{**f, **r} for f, r in zip(finished, reset_infos)])
+        merged = self._merge([{**f, **r} for f, r in zip(finished, reset_infos, strict=False)])
         n = self.num_envs
         return self._obs.copy(), rewards, np.ones(n, dtype=bool), np.zeros(n, dtype=bool), merged
 

@@ -1,6 +1,6 @@
 """The interface every back end shares: ``Filter(model, **params).run(y) -> states``, and
 ``run_from(y, carry) -> (states, carry)`` to continue a run where a previous call stopped (the Kalman family
-carries its state, a :class:`Carry`; the FIR family its measurement history, :class:`filters.history.History`).
+carries its state, a :class:`Carry`; the FIR family its measurement history, :class:`bboxtune.filters.history.History`).
 
 A back end subclasses :class:`Filter`, lists its parameters with their defaults in ``DEFAULTS`` and
 implements, on one batch of independent two-state coordinate problems (every coordinate of every track is
@@ -13,7 +13,7 @@ Batches run in chunks of whole tracks of at most :data:`CHUNK_SAMPLES` channel-f
 beyond ``y`` and the result does not grow with B (20,000 box tracks × 500 frames with missing frames: UFIR once
 needed 12–13 GB, now ~1.3 GB peak RSS in all); small calls are one chunk, unchanged. B = 0 tracks or T = 0 frames
 give empty results. Every estimate from a channel's first finite measurement on is checked to be finite
-(``FloatingPointError`` otherwise: inside the ranges of :mod:`filters.validation` it never happens).
+(``FloatingPointError`` otherwise: inside the ranges of :mod:`bboxtune.filters.validation` it never happens).
 """
 
 from __future__ import annotations
@@ -25,8 +25,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.model import StateSpaceModel
-from filters.validation import broadcast_params, check_measurements, check_values
+from bboxtune.filters.model import StateSpaceModel
+from bboxtune.filters.threads import limited_blas
+from bboxtune.filters.validation import broadcast_params, check_measurements, check_values
 
 # Channel-frames (tracks × coordinates × frames) filtered per chunk: bounds the working memory of a call
 # (the heaviest back end, UFIR with missing samples, needs ~300 bytes per channel-frame: ~300 MB a chunk)
@@ -42,7 +43,8 @@ class Carry:
     yet and no prior (runs with ``x0=None``): the next call starts it like :meth:`Filter.run` starts a
     track. The arrays are copied and made read-only, so one carry can start any number of runs.
 
-    >>> import numpy as np, filters
+    >>> import numpy as np
+    >>> from bboxtune import filters
     >>> model, y = filters.constant_velocity(0.05), np.sin(np.arange(20.0))[:, None]
     >>> first, carry = filters.make("kf", model, sigma_w=5.0).run_from(y[:12])
     >>> rest, carry = filters.make("kf", model, sigma_w=5.0).run_from(y[12:], carry)
@@ -58,7 +60,7 @@ class Carry:
     measured: np.ndarray  # (B, M) bool: the coordinate has had a finite measurement (kf_cmn: with a prior,
     #                       the first one is a y-update, later ones use z_n = y_n − ψ^{g+1} y_last)
     c: np.ndarray | None = None  # (B, n_c) ukf camera_motion only: apparent background velocity c (units/s)
-    #                               of the first n_c = min(M, 2) coordinates (filters.ukf)
+    #                               of the first n_c = min(M, 2) coordinates (bboxtune.filters.ukf)
     P_c: np.ndarray | None = None  # (B, n_c, 3) covariance of c with [position, velocity, c] of its coordinate
     missed: np.ndarray | None = None  # (B, M) frames after y_last's up to the last one; None → 0 (not given)
 
@@ -105,7 +107,7 @@ class AxisCarry:
 
 
 class Filter(ABC):
-    """A configured filter. Construct with :func:`filters.make`; call :meth:`run` on measurements.
+    """A configured filter. Construct with :func:`bboxtune.filters.make`; call :meth:`run` on measurements.
 
     ``params`` holds the validated parameters, each a float/int array of shape () or (B,).
     """
@@ -137,7 +139,7 @@ class Filter(ABC):
     @property
     def camera_coordinates(self) -> int:
         """How many leading coordinates carry camera states (and take the camera velocity ``u``); 0 unless
-        the back end models camera motion (:class:`filters.ukf.UKF` with ``camera_motion=True``)."""
+        the back end models camera motion (:class:`bboxtune.filters.ukf.UKF` with ``camera_motion=True``)."""
         return 0
 
     @abstractmethod
@@ -159,11 +161,12 @@ class Filter(ABC):
         Returns the estimates (C, T, 2) and the state after the last frame."""
         raise NotImplementedError(CANNOT_CONTINUE.format(name=self.name))
 
+    @limited_blas
     def run(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """Filter ``y`` shaped (T, M) or (B, T, M); NaN = missing. Returns states (T, K) or (B, T, K).
 
         ``u``: only for back ends with camera states (``camera_coordinates`` = n_c > 0): the measured apparent
-        background velocity (T, n_c) or (B, T, n_c), units/s, NaN where unavailable (see filters.ukf).
+        background velocity (T, n_c) or (B, T, n_c), units/s, NaN where unavailable (see bboxtune.filters.ukf).
         B = 0 or T = 0 give an empty result of that shape. Large batches run in chunks of tracks
         (:data:`CHUNK_SAMPLES`), so the working memory beyond ``y`` and the result stays bounded."""
         Y, U, per_track, batched = self._inputs(y, u)
@@ -175,6 +178,7 @@ class Filter(ABC):
             states[rows] = merge_axes(axes, rows.stop - rows.start, M)
         return states if batched else states[0]
 
+    @limited_blas
     def positions(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """The position estimates only, (T, M) or (B, T, M): ``run(y, u)[..., :M]``, cheaper where a back end
         can skip the velocities (the FIR family: half the work of its full-window convolution)."""
@@ -190,6 +194,7 @@ class Filter(ABC):
             out[rows] = axes[..., 0].reshape(rows.stop - rows.start, M, T).transpose(0, 2, 1)
         return out if batched else out[0]
 
+    @limited_blas
     def run_from(self, y: np.ndarray, carry: Carry | None = None,
                  u: np.ndarray | None = None) -> tuple[np.ndarray, Carry]:
         """Continue a run: filter ``y`` (T, M) or (B, T, M) starting from ``carry`` (the state a previous call
@@ -229,7 +234,7 @@ class Filter(ABC):
 
     def _check_finite(self, axes: np.ndarray, z: np.ndarray, rows: slice, params: dict[str, Any]) -> None:
         """Every estimate (C, T, k) at or after a channel's first finite measurement must be finite: inside the
-        documented ranges (:mod:`filters.validation`) it is; a non-finite one is a numerical failure, reported
+        documented ranges (:mod:`bboxtune.filters.validation`) it is; a non-finite one is a numerical failure, reported
         rather than returned."""
         bad = np.maximum.accumulate(~np.isnan(z), axis=1)[..., None] & ~np.isfinite(axes)
         if bad.any():
@@ -239,7 +244,7 @@ class Filter(ABC):
             raise FloatingPointError(
                 f"{self.name}: non-finite estimate at track {rows.start + c // M}, coordinate {c % M}, frame {t}, after "
                 f"a finite measurement (parameters {used}, tau={self.model.tau!r}): float64 failed inside the valid "
-                "ranges of filters.validation — please report this input")
+                "ranges of bboxtune.filters.validation — please report this input")
 
     def _inputs(self, y: np.ndarray, u: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None,
                                                                       dict[str, np.ndarray], bool]:
@@ -322,7 +327,7 @@ def merge_axes(axes: np.ndarray, n_tracks: int, M: int) -> np.ndarray:
 def _split_carry(carry: Carry, n_tracks: int, M: int, n_c: int) -> AxisCarry:
     """Check a :class:`Carry` against y's batch B and the model, and split it into channels."""
     if not isinstance(carry, Carry):
-        raise ValueError(f"carry is a {type(carry).__name__}; allowed: None or a filters.base.Carry")
+        raise ValueError(f"carry is a {type(carry).__name__}; allowed: None or a bboxtune.filters.base.Carry")
     K = 2 * M
     wants = {"x": (n_tracks, K), "P": (n_tracks, K, K), "y_last": (n_tracks, M), "measured": (n_tracks, M),
              "missed": (n_tracks, M), "c": (n_tracks, n_c), "P_c": (n_tracks, n_c, 3)}

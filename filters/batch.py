@@ -3,11 +3,12 @@ filter calls as the tracks allow.
 
 Batching across frame intervals happens here: a back end exact in frame units (``IN_FRAMES``: the FIR family, KF,
 KF-CMN, the peer box filters bytetrack_kf and sort_kf, which work per frame anyway) runs every track at τ = 1 with
-its parameters converted (:meth:`filters.base.Filter.params_in_frames`, the one definition of the conversion:
+its parameters converted (:meth:`bboxtune.filters.base.Filter.params_in_frames`, the one definition of the conversion:
 σ_w → σ_w τ², a prior's velocities × τ), so tracks of any τ share one cached
 model and one call; the others (UKF) run at each track's τ. (A FIR filter built at another τ applies the same
-conversion inside, so that its gains are cached once for all τ.) Position estimates are the same either way (to round-off; tests/filters/
-test_batch.py). Models are the constant-velocity models of :func:`filters.constant_velocity` (cached there).
+conversion inside, so that its gains are cached once for all τ.) Position estimates are the same either way (to
+round-off; tests/filters/
+test_batch.py). Models are the constant-velocity models of :func:`bboxtune.filters.constant_velocity` (cached there).
 """
 
 from __future__ import annotations
@@ -16,9 +17,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from filters.base import Filter
-from filters.model import constant_velocity
-from filters.registry import filter_class
+from bboxtune.filters.base import Filter
+from bboxtune.filters.model import constant_velocity
+from bboxtune.filters.registry import filter_class
 
 
 def _run_intervals(cls: type[Filter], taus: np.ndarray, params: dict[str, np.ndarray]
@@ -51,7 +52,7 @@ def track_positions(name: str, ys: Sequence[np.ndarray], taus: Sequence[float],
     taus_run, used = _run_intervals(cls, np.asarray(taus, dtype=float), params)
     lengths = np.array([len(y) for y in ys])
     out: list[np.ndarray] = [np.empty(0)] * len(ys)
-    for T, tau in sorted(set(zip(lengths.tolist(), taus_run.tolist()))):
+    for T, tau in sorted(set(zip(lengths.tolist(), taus_run.tolist(), strict=False))):
         rows = np.flatnonzero((lengths == T) & (taus_run == tau))
         flt = cls(constant_velocity(tau, ndim=ys[rows[0]].shape[-1]), **{k: v[rows] for k, v in used.items()})
         est = flt.positions(np.stack([ys[r] for r in rows]))

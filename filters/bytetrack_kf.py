@@ -1,6 +1,6 @@
 """The box Kalman filter of ByteTrack and DeepSORT ([Zhang-ByteTrack], [Wojke-DeepSORT]; both code bases share one
 ``KalmanFilter``), batched over tracks, and :class:`BoxKF`, the whole-box recursion it shares with SORT's
-(:mod:`filters.sort_kf`).
+(:mod:`bboxtune.filters.sort_kf`).
 
 ByteTrack's filter, per track, with dt = 1 frame and h the track's height:
 
@@ -22,10 +22,11 @@ the 8×8 recursion is four 2-state problems whose noise scales with the track's 
 closed form, vectorised over tracks and coordinates, with a loop over frames only (the gains depend on the data
 through h: no gain sharing). Exact in frame units (``IN_FRAMES``): τ only converts the velocities to units per
 second. Output: states (B, T, 8) = (cx, cy, w = a h, h), then their rates per second (ẇ = ȧ h + a ḣ).
-``run_from`` continues from a :class:`filters.base.Carry` holding the filter's own state [x, y, a, h, rates per
+``run_from`` continues from a :class:`bboxtune.filters.base.Carry` holding the filter's own state [x, y, a, h, rates per
 second] and its block-diagonal covariance.
 
->>> import numpy as np, filters
+>>> import numpy as np
+>>> from bboxtune import filters
 >>> f = filters.make("bytetrack_kf", filters.constant_velocity(1 / 30, ndim=4))
 >>> f.run(np.array([[50.0, 60.0, 20.0, 40.0], [np.nan] * 4, [52.0, 61.0, 22.0, 40.0]]))[:, :4].round(2)
 array([[50.  , 60.  , 20.  , 40.  ],
@@ -41,9 +42,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.base import CHUNK_SAMPLES, Carry, Filter, block_diagonal, coordinate_blocks, not_started
-from filters.model import StateSpaceModel
-from filters.validation import check_range
+from bboxtune.filters.base import CHUNK_SAMPLES, Carry, Filter, block_diagonal, coordinate_blocks, not_started
+from bboxtune.filters.model import StateSpaceModel
+from bboxtune.filters.threads import limited_blas
+from bboxtune.filters.validation import check_range
 
 M = 4  # measured coordinates of a box
 STD_RANGE = (1e-12, 1e12)  # every noise weight or standard deviation of the peer filters (finite over all of it)
@@ -115,7 +117,7 @@ class BoxKF(Filter):
     def __init__(self, model: StateSpaceModel, **params: Any) -> None:
         if model.M != M:
             raise ValueError(f"{self.name} filters boxes (cx, cy, w, h); the model has M={model.M}, allowed: "
-                             "filters.constant_velocity(tau, ndim=4)")
+                             "bboxtune.filters.constant_velocity(tau, ndim=4)")
         super().__init__(model, **params)
 
     @abstractmethod
@@ -147,9 +149,10 @@ class BoxKF(Filter):
 
     def run_from(self, y: np.ndarray, carry: Carry | None = None,
                  u: np.ndarray | None = None) -> tuple[np.ndarray, Carry]:
-        """As :meth:`filters.base.Filter.run_from`; the carry holds the filter's own state (module docstring)."""
+        """As :meth:`bboxtune.filters.base.Filter.run_from`; the carry holds the filter's own state (module docstring)."""
         return self._filter(y, u, carry, positions_only=False)
 
+    @limited_blas
     def _filter(self, y: np.ndarray, u: np.ndarray | None, carry: Carry | None,
                 positions_only: bool) -> tuple[np.ndarray, Carry]:
         Y, _, per_track, batched = self._inputs(y, u)
@@ -239,7 +242,7 @@ class BoxKF(Filter):
     def _start_state(self, carry: Carry, n_tracks: int) -> np.ndarray:
         """The state X (5, 4, B) a carry holds, checked against y's batch (ValueError naming the field)."""
         if not isinstance(carry, Carry):
-            raise ValueError(f"carry is a {type(carry).__name__}; allowed: None or a filters.base.Carry")
+            raise ValueError(f"carry is a {type(carry).__name__}; allowed: None or a bboxtune.filters.base.Carry")
         wants = {"x": (n_tracks, 2 * M), "P": (n_tracks, 2 * M, 2 * M), "y_last": (n_tracks, M),
                  "measured": (n_tracks, M)}
         for name, want in wants.items():

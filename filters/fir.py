@@ -1,6 +1,6 @@
 """Kwon's minimum-variance FIR filter in the C̄_N, Ḡ_N, Π_N form of [Mo-FIR] (eqs. 5–13; notes §1.7).
 
-Seed 004 writes the filter for the forward-Euler model ``s_{k+1} = A s_k + w_k`` as a one-step predictor of s_k
+[Mo-FIR] writes the filter for the forward-Euler model ``s_{k+1} = A s_k + w_k`` as a one-step predictor of s_k
 from ``z_{k−N} … z_{k−1}``. Here the same construction is applied to this project's model (``x_l = F x_{l−1} +
 B w_l``, ``y_l = H x_l + v_l``) as a *filter* on the window ``y_m … y_n`` (m = n − L + 1, L = N samples), so the
 noise inputs are ``W = [w_{m+1} … w_n]`` and x_n is reached from x_m in L − 1 steps::
@@ -13,15 +13,15 @@ noise inputs are ``W = [w_{m+1} … w_n]`` and x_n is reached from x_m in L − 
     Π_N = Ḡ_N diag(Q … Q) Ḡ_Nᵀ + diag(R … R)      (9)     Q = σ_w², R = σ_v²
     x̂_n = (C̄_Nᵀ Π_N⁻¹ C̄_N)⁻¹ C̄_Nᵀ Π_N⁻¹ Y          (5)
 
-This is the same estimator as OUFIR (:mod:`filters.oufir`), reached by a different formula (GLS referenced to x_n
-instead of a constrained minimum-variance gain referenced to x_m); the tests check they agree. Seed 004's δ
+This is the same estimator as OUFIR (:mod:`bboxtune.filters.oufir`), reached by a different formula (GLS referenced to x_n
+instead of a constrained minimum-variance gain referenced to x_m); the tests check they agree. [Mo-FIR]'s δ
 experiment (the truth sampled every τ + δ while the filter assumes τ) is a model error this filter absorbs for
 constant-velocity motion: its position estimate is unbiased for every straight line whatever the time scale.
 
-Conventions as in :mod:`filters.oufir`: missing samples are dropped from Y, C̄_N, Ḡ_N and Π_N; start-up windows
+Conventions as in :mod:`bboxtune.filters.oufir`: missing samples are dropped from Y, C̄_N, Ḡ_N and Π_N; start-up windows
 are the full-horizon filter on the samples so far (grown by the OUFIR recursion, the same estimator); when Π_N is
 too ill-conditioned for its Cholesky factor (``1 + ratio² ‖Ḡ_N‖²_F > COND_MAX``) the gain is taken from the
-equivalent ML least-squares form of :func:`filters.oufir.window_gls_gain`.
+equivalent ML least-squares form of :func:`bboxtune.filters.oufir.window_gls_gain`.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from filters.oufir import COND_MAX, OUFIR, window_gls_gain, window_model
+from bboxtune.filters.oufir import COND_MAX, OUFIR, window_gls_gain, window_model
 
 
 def kwon_gain(F: np.ndarray, H: np.ndarray, B: np.ndarray, valid: np.ndarray, sigma_w: float,
@@ -54,11 +54,12 @@ def kwon_gain(F: np.ndarray, H: np.ndarray, B: np.ndarray, valid: np.ndarray, si
 class KwonFIR(OUFIR):
     """Kwon's minimum-variance FIR filter ([Mo-FIR] eqs. 5–13), filtered form on the last N frames.
 
-    Parameters as :class:`filters.oufir.OUFIR`: ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v``
-    (measurement noise std, units), ``horizon`` N (integer >= 2; None → :func:`filters.horizon.rule_horizon`),
+    Parameters as :class:`bboxtune.filters.oufir.OUFIR`: ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v``
+    (measurement noise std, units), ``horizon`` N (integer >= 2; None → :func:`bboxtune.filters.horizon.rule_horizon`),
     each a scalar or (B,) per track.
 
-    >>> import numpy as np, filters
+    >>> import numpy as np
+    >>> from bboxtune import filters
     >>> f = filters.make("fir", filters.constant_velocity(0.05), sigma_w=50.0, sigma_v=4.0, horizon=20)
     >>> bool(np.allclose(f.run(np.arange(30.0)[:, None])[-1], [29.0, 20.0]))  # a ramp is reproduced exactly
     True

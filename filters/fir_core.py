@@ -20,7 +20,7 @@ the paper's batch formula); :meth:`FIRFilter._run_axes` applies it to every chan
 Frame n = 0 is the first frame of every track; outputs are posterior estimates at every frame, float64.
 A back end with a cheaper exact form for the start-up or the NaN windows (the least-squares UFIR family:
 cumulative sums / FFT moment sums, no per-pattern gains; the window-KF family: the associative scan of
-:mod:`filters.window_scan`) overrides ``_startup`` / ``_masked``.
+:mod:`bboxtune.filters.window_scan`) overrides ``_startup`` / ``_masked``.
 """
 
 from __future__ import annotations
@@ -34,11 +34,11 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.fft as sfft
 
-from filters.base import Filter
-from filters.history import History, continue_span
-from filters.horizon import rule_horizon
-from filters.model import StateSpaceModel, constant_velocity
-from filters.validation import check_horizon, check_measurements, check_sigma
+from bboxtune.filters.base import Filter
+from bboxtune.filters.history import History, continue_span
+from bboxtune.filters.horizon import rule_horizon
+from bboxtune.filters.model import StateSpaceModel, constant_velocity
+from bboxtune.filters.validation import check_horizon, check_measurements, check_sigma
 
 CACHE_BYTES = 64 * 2**20  # bytes of gains kept by the LRU gain cache (shared by all FIR back ends)
 
@@ -78,8 +78,8 @@ GAINS = GainCache(CACHE_BYTES)
 
 def check_fir_params(params: dict[str, Any], model: StateSpaceModel) -> dict[str, Any]:
     """Validate the parameters every FIR back end shares: ``sigma_w``, ``sigma_v`` (within
-    :data:`filters.validation.SIGMA_RANGE`) and ``horizon`` (integer N with K <= N, K = 2 the per-coordinate state
-    size; None → the N_opt rule :func:`filters.horizon.rule_horizon`, per track when the σ are arrays). Per-track
+    :data:`bboxtune.filters.validation.SIGMA_RANGE`) and ``horizon`` (integer N with K <= N, K = 2 the per-coordinate state
+    size; None → the N_opt rule :func:`bboxtune.filters.horizon.rule_horizon`, per track when the σ are arrays). Per-track
     arrays must agree in length. Returns a copy of ``params`` with those three replaced by validated arrays."""
     out = dict(params)
     out["sigma_w"] = check_sigma("sigma_w", params["sigma_w"])
@@ -136,9 +136,9 @@ class FIRFilter(Filter):
 
     def run_from(self, y: np.ndarray, carry: History | None = None,
                  u: np.ndarray | None = None) -> tuple[np.ndarray, History]:
-        """Continue a run after the measurements in ``carry`` (a :class:`~filters.history.History`; None = the
+        """Continue a run after the measurements in ``carry`` (a :class:`~bboxtune.filters.history.History`; None = the
         start of every track): the states of ``y`` (T, M) or (B, T, M) and the history after it. The parameters
-        may differ from the previous call's; equality with :meth:`run` on the whole track: :mod:`filters.history`."""
+        may differ from the previous call's; equality with :meth:`run` on the whole track: :mod:`bboxtune.filters.history`."""
         return self._continue(y, carry, u, self.run)
 
     def positions_from(self, y: np.ndarray, carry: History | None = None,
@@ -149,7 +149,7 @@ class FIRFilter(Filter):
     def _continue(self, y: np.ndarray, carry: History | None, u: np.ndarray | None,
                   run: Any) -> tuple[np.ndarray, History]:
         if carry is not None and not isinstance(carry, History):
-            raise TypeError(f"{self.name}: carry is a {type(carry).__name__}; allowed: None or a filters.history.History "
+            raise TypeError(f"{self.name}: carry is a {type(carry).__name__}; allowed: None or a bboxtune.filters.history.History "
                             "(the FIR family's carry is its measurement history)")
         Y, batched = check_measurements(y, self.model.M)
         self._check_input(u, Y.shape, batched)  # no camera states: refuses a u
@@ -222,7 +222,7 @@ class FIRFilter(Filter):
                 raise FloatingPointError(
                     f"{self.name}: no finite estimate for channel {cs[p]} at frame {ns[p]} although its window "
                     f"determines the state (gain parameters {({k: v[group[cs[p]]].item() for k, v in gparams.items()})}"
-                    ", in frame units): float64 failed inside the valid ranges of filters.validation — please report "
+                    ", in frame units): float64 failed inside the valid ranges of bboxtune.filters.validation — please report "
                     "this input")
 
     def _groups(self, params: dict[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -334,7 +334,7 @@ class FIRFilter(Filter):
         misses = [u for u, g in enumerate(found) if g is None]
         if misses:
             fresh = self.window_gains(masks[misses], _take(gp, np.asarray(misses)))
-            for u, g in zip(misses, fresh):
+            for u, g in zip(misses, fresh, strict=False):
                 GAINS.put(keys[u], g)
                 found[u] = g
         return np.stack(found)

@@ -1,11 +1,11 @@
-"""The FIR family's :meth:`~filters.base.Filter.run_from`: its carry is the measurement history.
+"""The FIR family's :meth:`~bboxtune.filters.base.Filter.run_from`: its carry is the measurement history.
 
 A FIR estimate at frame n depends only on the measurements of its window (the last N + ``EXTRA_SAMPLES`` frames),
 so continuing a run needs no filter state, only the recent measurements. :class:`History` keeps every
 measurement seen so far (the next call may use a longer horizon); a continued run filters the last
 max(N) + 1 frames of it followed by the new frames and returns the new frames' estimates.
 
-Equality with :meth:`~filters.base.Filter.run` on the whole track: exact (to round-off) wherever every window
+Equality with :meth:`~bboxtune.filters.base.Filter.run` on the whole track: exact (to round-off) wherever every window
 is the full horizon or starts at the track's first frame — the start-up windows are the same because the run
 reaches back to the first frame while the history is short. One exception: after a gap longer than the
 horizon a FIR run holds the last estimate made before the gap, while a run continued inside such a gap finds
@@ -23,7 +23,8 @@ import numpy as np
 @dataclass(frozen=True, eq=False)
 class History:
     """The measurements (B, H, M) a FIR run has seen so far (NaN = missing), read-only (a writeable array is
-    copied, a read-only one kept as it is); H = 0 before the first frame. Like :class:`~filters.base.Carry` it can be sliced per track and repeated
+    copied, a read-only one kept as it is); H = 0 before the first frame. Like :class:`~bboxtune.filters.base.Carry`
+    it can be sliced per track and repeated
     for candidates."""
 
     y: np.ndarray

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.validation import check_sigma, check_tau
+from bboxtune.filters.validation import check_sigma, check_tau
 
 
 def n_opt(sigma_v: float | np.ndarray, sigma_w: float | np.ndarray, tau: float | np.ndarray) -> float | np.ndarray:

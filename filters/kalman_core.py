@@ -22,11 +22,11 @@ Frame kinds (per channel and frame):
 * ``PREDICT``— no usable measurement: x = F x, P = F P Fᵀ + Q (missing data).
 * ``UPDATE_Y``— predict, then a standard update on y_n (D = H).
 * ``UPDATE_Z``— KF-CMN: de-correlated predict + update on the differenced z_n ([Shmaliy-CMN] Algorithm 1).
-* ``UPDATE_Z + i`` — KF-CMN after the i-th gap length of the call (:func:`filters.kf_cmn.differenced_kinds`):
+* ``UPDATE_Z + i`` — KF-CMN after the i-th gap length of the call (:func:`bboxtune.filters.kf_cmn.differenced_kinds`):
   predict, then the time-correlated update (M ≠ 0) on z_n = y_n − ψ^{g+1} y_m. The kind axis of
   :class:`StepTables` has an entry per kind; kinds are int8 (int32 beyond 123 gap lengths in one call).
 
-A continued run (:meth:`filters.base.Filter.run_from`) starts a channel from its carried posterior state and
+A continued run (:meth:`bboxtune.filters.base.Filter.run_from`) starts a channel from its carried posterior state and
 covariance (a prior for frame 0) and hands back the covariance at the last frame: the last P of its row's
 recursion, or the steady P where the recursion stopped early, so the carry adds no per-frame work.
 """
@@ -39,8 +39,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.base import AxisCarry, split_covariance, split_state
-from filters.validation import VALUE_MAX, VARIANCE_MAX, check_prior_scale
+from bboxtune.filters.base import AxisCarry, split_covariance, split_state
+from bboxtune.filters.validation import VALUE_MAX, VARIANCE_MAX, check_prior_scale
 
 WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)  # UPDATE_Z + i: KF-CMN over the i-th gap length
 
@@ -87,7 +87,7 @@ def frame_kinds(finite: np.ndarray, prior: bool | np.ndarray, measured: np.ndarr
 
     The first finite measurement is a standard update (``prior``, bool or per channel (C,)) or the
     initialisation (no prior); later finite frames update on y (KF-CMN turns those with an earlier finite y into
-    UPDATE_Z kinds: :func:`filters.kf_cmn.differenced_kinds`). A continued run (``Filter.run_from``) passes
+    UPDATE_Z kinds: :func:`bboxtune.filters.kf_cmn.differenced_kinds`). A continued run (``Filter.run_from``) passes
     ``measured`` (C,): channels whose first finite measurement lies before frame 0."""
     C, T = finite.shape
     frames = np.arange(T)
@@ -150,7 +150,7 @@ def gain_recursion(kinds: np.ndarray, tables: StepTables,
     start = tuple(P_start.reshape(4, G))
     if G == 1:  # Python floats
         table = [tuple(entries) for entries in flat[:, :, 0].tolist()]
-        cross = [tuple(M) if c else None for M, c in zip(tables.M[:, :, 0].tolist(), correlated)]
+        cross = [tuple(M) if c else None for M, c in zip(tables.M[:, :, 0].tolist(), correlated, strict=False)]
         start, kinds_n, rows = tuple(float(v[0]) for v in start), kinds[0].tolist(), None
     else:
         uniform = np.all(kinds == kinds[:1], axis=0)  # frames where every row has the same kind
@@ -172,11 +172,11 @@ def gain_recursion(kinds: np.ndarray, tables: StepTables,
             coef[n] = row
             if resets[n]:
                 reset = k <= INIT
-                P_new = tuple(np.where(reset, s0, p) for s0, p in zip(start, P_new))
+                P_new = tuple(np.where(reset, s0, p) for s0, p in zip(start, P_new, strict=False))
                 coef[n][:, reset] = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 0.0])[:, None]  # x = [m, 0] (INIT)
                 coef[n][4, k == WAIT] = 0.0  # x = 0 (WAIT; output NaN)
         # P_n = P_{n-1} and no kind changes later: every later frame repeats frame n
-        if n % 8 == 7 and n >= settled_from and all(np.array_equal(a, b) for a, b in zip(P_new, P)):
+        if n % 8 == 7 and n >= settled_from and all(np.array_equal(a, b) for a, b in zip(P_new, P, strict=False)):
             coef[n + 1:] = coef[n]
             return coef, n, np.reshape(np.array(P_new), (2, 2, G))
         P = P_new
@@ -346,7 +346,7 @@ def check_prior(x0: object, P0: object, K: int, M: int, sigma_v: np.ndarray,
     """Validate the full-model prior: ``x0`` None or finite (K,) with entries within ±``VALUE_MAX``; ``P0`` None or
     symmetric positive semi-definite (K, K) with entries within ±``VARIANCE_MAX`` that does not couple different
     coordinates and whose per-coordinate blocks, in frame units, have eigenvalues <= ``PRIOR_MAX`` × every track's
-    ``sigma_v``² (:mod:`filters.validation`; the model's interval ``tau``)."""
+    ``sigma_v``² (:mod:`bboxtune.filters.validation`; the model's interval ``tau``)."""
     x = None
     if x0 is not None:
         x = np.asarray(x0, dtype=float)
@@ -372,7 +372,7 @@ def check_prior(x0: object, P0: object, K: int, M: int, sigma_v: np.ndarray,
 
 class FramePrior:
     """Mixin of the Kalman back ends that run exactly in frame units (``IN_FRAMES``): besides σ_w → σ_w τ²
-    (:meth:`filters.base.Filter.params_in_frames`), the prior ``x0`` (K,) / ``P0`` (K, K) of the state
+    (:meth:`bboxtune.filters.base.Filter.params_in_frames`), the prior ``x0`` (K,) / ``P0`` (K, K) of the state
     [positions, velocities] becomes that of [positions, velocities τ]; one prior serves all tracks, so ``tau``
     must then be a scalar."""
 

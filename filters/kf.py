@@ -16,12 +16,13 @@ Conventions
 * NaN in y = missing: predict only (filterpy ``update(None)``).
 * Output: posterior ``[positions, velocities]`` at every frame, float64.
 * ``run_from(y, carry)`` continues a run from the posterior state and covariance a previous call ended in
-  (:class:`filters.base.Carry`): the next frame is predict + update from there, with this call's σ_w, σ_v.
+  (:class:`bboxtune.filters.base.Carry`): the next frame is predict + update from there, with this call's σ_w, σ_v.
 
 Speed: the gains are computed once per unique (σ_w, σ_v, missing pattern) and stop being recomputed once
-they reach steady state (:mod:`filters.kalman_core`); all channels are then filtered together.
+they reach steady state (:mod:`bboxtune.filters.kalman_core`); all channels are then filtered together.
 
->>> import numpy as np, filters
+>>> import numpy as np
+>>> from bboxtune import filters
 >>> kf = filters.make("kf", filters.constant_velocity(0.05), sigma_w=50.0, sigma_v=4.0)
 >>> kf.run(np.array([[1.0], [1.1], [np.nan], [1.3]])).round(3)
 array([[1. , 0. ],
@@ -36,16 +37,23 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.base import AxisCarry, Filter
-from filters.kalman_core import (FramePrior, StepTables, channel_start, check_prior, filter_channels, frame_kinds,
-                                 plain_tables)
-from filters.validation import check_sigma
+from bboxtune.filters.base import AxisCarry, Filter
+from bboxtune.filters.kalman_core import (
+    FramePrior,
+    StepTables,
+    channel_start,
+    check_prior,
+    filter_channels,
+    frame_kinds,
+    plain_tables,
+)
+from bboxtune.filters.validation import check_sigma
 
 
 class KF(FramePrior, Filter):
     """Kalman filter. Parameters: ``sigma_w`` (acceleration noise std, units/s², per track), ``sigma_v``
     (measurement noise std, units, per track), ``x0`` (K,) and ``P0`` (K, K) prior (see module docstring); valid
-    ranges in :mod:`filters.validation` (σ within [1e-30, 1e30], P0 at most 1e8 σ_v² per coordinate in frame
+    ranges in :mod:`bboxtune.filters.validation` (σ within [1e-30, 1e30], P0 at most 1e8 σ_v² per coordinate in frame
     units)."""
 
     name: ClassVar[str] = "kf"

@@ -43,7 +43,7 @@ out of P_{n-1}: at σ_w τ²/σ_v = 1e20 the velocity after a 30-frame gap at ψ
 Conventions
 -----------
 * The first finite measurement of a channel has no z. With a prior ``x0``/``P0`` (predict-first, as in
-  :class:`filters.kf.KF`) it is a standard KF update on y with the stationary CMN variance ``σ_v² / (1 − ψ²)``;
+  :class:`bboxtune.filters.kf.KF`) it is a standard KF update on y with the stationary CMN variance ``σ_v² / (1 − ψ²)``;
   without a prior the state is initialised there as ``[y, 0]`` with covariance ``P0`` or
   ``diag(σ_v²/(1−ψ²), (10³ σ_v/τ)²/(1−ψ²))``. Frames before it are NaN.
 * Every later finite y_n updates on z_n of (G1), across any gap; a missing y_n is predict-only (x = F x,
@@ -53,7 +53,7 @@ Conventions
   to ``kf`` on any missing pattern.
 * Output: posterior ``[positions, velocities]`` at every frame, float64.
 * ``run_from(y, carry)`` continues from the posterior state and covariance a previous call ended in
-  (:class:`filters.base.Carry`) with this call's σ_w, σ_v, ψ; the carried last finite measurement and the frames
+  (:class:`bboxtune.filters.base.Carry`) with this call's σ_w, σ_v, ψ; the carried last finite measurement and the frames
   missed since (``Carry.y_last``, ``Carry.missed``) give the first z of the call (ψ of this call), so a run
   split anywhere, inside gaps too, equals the whole one. A measured coordinate whose carry has no finite
   ``y_last`` (a hand-made carry) updates its next finite y like a first measurement with a prior.
@@ -61,7 +61,8 @@ Conventions
   :func:`differenced_kinds`) whose table entries (:func:`gap_update`) are built once for all rows; gap-free data
   has the one kind UPDATE_Z and costs what it did before (about 1 % more instructions).
 
->>> import numpy as np, filters
+>>> import numpy as np
+>>> from bboxtune import filters
 >>> f = filters.make("kf_cmn", filters.constant_velocity(0.05), sigma_w=50.0, sigma_v=4.0, psi=0.6)
 >>> f.run(np.zeros((5, 1))).shape
 (5, 2)
@@ -73,17 +74,25 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.base import AxisCarry, Filter
-from filters.kalman_core import (UPDATE_Z, FramePrior, StepTables, channel_start, check_prior, filter_channels,
-                                 frame_kinds, plain_tables)
-from filters.model import StateSpaceModel
-from filters.validation import check_sigma, check_psi
+from bboxtune.filters.base import AxisCarry, Filter
+from bboxtune.filters.kalman_core import (
+    UPDATE_Z,
+    FramePrior,
+    StepTables,
+    channel_start,
+    check_prior,
+    filter_channels,
+    frame_kinds,
+    plain_tables,
+)
+from bboxtune.filters.model import StateSpaceModel
+from bboxtune.filters.validation import check_psi, check_sigma
 
 
 class KFCMN(FramePrior, Filter):
     """KF for CMN. Parameters: ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v`` (std σ_ξ of the
     white noise driving the CMN, units), ``psi`` (coloredness 0 <= ψ <= 0.99) — all per track — and the prior
-    ``x0`` (K,), ``P0`` (K, K) (see module docstring); valid ranges in :mod:`filters.validation`."""
+    ``x0`` (K,), ``P0`` (K, K) (see module docstring); valid ranges in :mod:`bboxtune.filters.validation`."""
 
     name: ClassVar[str] = "kf_cmn"
     DEFAULTS: ClassVar[dict[str, Any]] = {"sigma_w": 1.0, "sigma_v": 1.0, "psi": 0.0, "x0": None, "P0": None}
@@ -116,7 +125,7 @@ class KFCMN(FramePrior, Filter):
 
 def differenced_kinds(kinds: np.ndarray, z: np.ndarray, finite: np.ndarray, y_before: np.ndarray,
                       missed: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Frame kinds (C, T) of :func:`filters.kalman_core.frame_kinds` with every finite y_n that has an earlier finite
+    """Frame kinds (C, T) of :func:`bboxtune.filters.kalman_core.frame_kinds` with every finite y_n that has an earlier finite
     y_m — in ``z`` (C, T) or the carried ``y_before`` (C,) (NaN: none) with ``missed`` (C,) frames after it — made
     kind ``UPDATE_Z + i``, g = n − m − 1 = ``gaps[i]`` (``gaps`` (n,): 0, then the other gap lengths present, sorted);
     the gaps, and every frame's measurement m_n (C, T): z_n = y_n − ψ^{g+1} y_m (G1) there, else y_n (0 if NaN)."""

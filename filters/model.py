@@ -16,7 +16,7 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
-from filters.validation import check_tau
+from bboxtune.filters.validation import check_tau
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,7 +50,7 @@ class StateSpaceModel:
 
 def constant_velocity(tau: float, ndim: int = 1) -> StateSpaceModel:
     """Constant-velocity model with white acceleration noise for ``ndim`` independent coordinates; ``tau`` (s)
-    within :data:`filters.validation.TAU_RANGE`.
+    within :data:`bboxtune.filters.validation.TAU_RANGE`.
 
     Per coordinate: ``F = [[1, τ], [0, 1]]``, ``H = [1, 0]``, ``B = [τ²/2, τ]ᵀ``, so the process noise
     covariance is ``Q = σ_w² B Bᵀ`` with σ_w the acceleration noise std (units per s²).

@@ -1,18 +1,18 @@
 """OFIR: the optimal (MMSE) FIR filter with a horizon-start prior ([PaleRamon-BBox] Alg. 2; notes §1.5).
 
-Seed 001 Alg. 2 runs the KF (Alg. 1) over the horizon ``i = m+1 … n`` from a prior ``x_m ~ (x̄_m, P_m)`` and
+[PaleRamon-BBox] Alg. 2 runs the KF (Alg. 1) over the horizon ``i = m+1 … n`` from a prior ``x_m ~ (x̄_m, P_m)`` and
 outputs x̂_n. The paper takes (x̄_m, P_m) from a running KF, which makes the filter IIR again. To stay a fixed FIR
 kernel this back end uses a **data-linear prior**: at the horizon start m (the oldest valid sample of the window)
 ``x̄_m = [y_m, 0]`` (position = the measurement, velocity 0) with covariance ``P_m = P0``; the window's later
 samples ``y_{m+1} … y_n`` update it. Then x̂_n is linear in the window, with batch form (notes §1.5, information
-form of ``K_OFIR = Σ_xy Σ_yy⁻¹``) computed by :func:`filters.oufir.window_gls_gain`.
+form of ``K_OFIR = Σ_xy Σ_yy⁻¹``) computed by :func:`bboxtune.filters.oufir.window_gls_gain`.
 
 Default ``P0 = diag(σ_v², (σ_v/τ)²)``: the prior position error is the measurement noise of y_m (exact), the prior
 velocity std is one measurement-noise std per frame interval (a convention; the true speed is unknown).
 Limits (tested): ``P0 = diag(σ_v², ∞)`` turns y_m into an ordinary measurement, giving OUFIR on the whole window;
 ``P0⁻¹ → 0`` discards y_m, giving OUFIR on the N − 1 samples after it. Windows with NaN start at their oldest valid
 sample; start-up windows at frame 0 (Alg. 2, "m = 0 otherwise"); fewer than 2 valid samples: latest valid
-measurement, velocity 0 (:mod:`filters.fir_core`).
+measurement, velocity 0 (:mod:`bboxtune.filters.fir_core`).
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.fir_core import check_fir_params
-from filters.oufir import KalmanWindowFIR, hold_last, kf_step, window_gls_gain
-from filters.validation import VARIANCE_MAX, check_prior_scale
+from bboxtune.filters.fir_core import check_fir_params
+from bboxtune.filters.oufir import KalmanWindowFIR, hold_last, kf_step, window_gls_gain
+from bboxtune.filters.validation import VARIANCE_MAX, check_prior_scale
 
 
 def default_prior(sigma_v: float, tau: float) -> np.ndarray:
@@ -48,10 +48,10 @@ def ofir_gain(F: np.ndarray, H: np.ndarray, B: np.ndarray, valid: np.ndarray, si
 
 def ofir_iterative(y: np.ndarray, F: np.ndarray, H: np.ndarray, B: np.ndarray, horizon: int, sigma_w: float,
                    sigma_v: float, P0: np.ndarray) -> np.ndarray:
-    """Seed 001 Alg. 2 literally, one output at a time, for one channel ``y`` (T,) (NaN = missing) → (T, K).
+    """[PaleRamon-BBox] Alg. 2 literally, one output at a time, for one channel ``y`` (T,) (NaN = missing) → (T, K).
 
     At each n: window max(0, n − N + 1) … n; x̂ = [y_a, 0], P = P0 at its oldest valid sample a, then the KF
-    (Alg. 1) for i = a+1 … n. Fewer than 2 valid samples in the window: :func:`filters.oufir.hold_last`."""
+    (Alg. 1) for i = a+1 … n. Fewer than 2 valid samples in the window: :func:`bboxtune.filters.oufir.hold_last`."""
     Q = sigma_w**2 * B @ B.T
     out = np.empty((y.size, F.shape[0]))
     for n in range(y.size):
@@ -72,7 +72,7 @@ PRIOR_LOW = 1e-30  # smallest eigenvalue of the prior covariance in frame units,
 def check_prior(P0: object, sigma_v: np.ndarray, tau: float) -> np.ndarray | None:
     """``P0``: None or a finite, symmetric, positive definite (2, 2) covariance with entries within
     ±``VARIANCE_MAX``, eigenvalues in frame units (of ``diag(1, τ) P0 diag(1, τ)``) within [:data:`PRIOR_LOW`,
-    :data:`filters.validation.PRIOR_MAX`] × every track's σ_v², and a Cholesky factorisation that succeeds
+    :data:`bboxtune.filters.validation.PRIOR_MAX`] × every track's σ_v², and a Cholesky factorisation that succeeds
     (ValueError otherwise)."""
     if P0 is None:
         return None
@@ -94,12 +94,13 @@ class OFIR(KalmanWindowFIR):
     """Optimal FIR filter ([PaleRamon-BBox] Alg. 2) with the data-linear horizon-start prior of this module.
 
     Parameters: ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v`` (measurement noise std, units),
-    ``horizon`` N (integer >= 2; None → :func:`filters.horizon.rule_horizon`) — each a scalar or (B,) per track;
+    ``horizon`` N (integer >= 2; None → :func:`bboxtune.filters.horizon.rule_horizon`) — each a scalar or (B,) per track;
     ``P0``: prior covariance (2, 2) of [position, velocity] at the horizon start, the same for every coordinate
     and track (None → :func:`default_prior` from each track's σ_v; in frame units its eigenvalues within
     [1e-30, 1e8] × σ_v², :func:`check_prior`).
 
-    >>> import numpy as np, filters
+    >>> import numpy as np
+    >>> from bboxtune import filters
     >>> f = filters.make("ofir", filters.constant_velocity(0.05), sigma_w=50.0, sigma_v=4.0, horizon=20)
     >>> bool(np.allclose(f.run(np.full((30, 1), 7.0))[-1], [7.0, 0.0]))  # a constant track is reproduced
     True

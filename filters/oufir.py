@@ -7,16 +7,16 @@ two-state model ``x_l = F x_{l−1} + B w_l``, ``y_l = H x_l + v_l``, ``w ~ N(0,
     Y = C_f x_m + G_w W + V,      x_n = F^{L−1} x_m + D_w W,      W = [w_{m+1} … w_n]ᵀ
 
 OUFIR is the linear estimate of x_n with the least error covariance among those unbiased for every x_m
-(``K C_f = F^{L−1}``); it needs no prior and is the same estimator as Kwon's FIR (:mod:`filters.fir`), the ML FIR,
+(``K C_f = F^{L−1}``); it needs no prior and is the same estimator as Kwon's FIR (:mod:`bboxtune.filters.fir`), the ML FIR,
 and the OFIR with an infinitely wide prior. Only the ratio σ_w/σ_v enters the gain.
 
 Conventions: missing samples (``valid`` False) are dropped from Y, C_f and G_w (the process noise of every step
 stays), so a window with gaps gives the exact OUFIR of its observed samples. Start-up windows (frames 0 … n,
 n < N − 1) give the full-horizon OUFIR on the samples so far ([PaleRamon-BBox] Alg. 4, "m = 0 otherwise"); a window with
-fewer than 2 valid samples outputs the latest valid measurement with velocity 0 (:mod:`filters.fir_core`).
+fewer than 2 valid samples outputs the latest valid measurement with velocity 0 (:mod:`bboxtune.filters.fir_core`).
 Clean full windows apply the batch gain :func:`oufir_gain` as a kernel; start-up frames and windows holding a NaN
 use the same estimator in its recursive form (K-point UFIR start + KF, or the associative composition of
-:mod:`filters.window_scan` for windows holding a NaN; :class:`KalmanWindowFIR`), run on the data.
+:mod:`bboxtune.filters.window_scan` for windows holding a NaN; :class:`KalmanWindowFIR`), run on the data.
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.linalg as sla
 
-from filters.fir_core import FIRFilter, check_fir_params
-from filters.model import matrix_powers
-from filters.window_scan import DATA, STRUCTURE, BlockLayout, FrameModel, window_estimates
+from bboxtune.filters.fir_core import FIRFilter, check_fir_params
+from bboxtune.filters.model import matrix_powers
+from bboxtune.filters.window_scan import DATA, STRUCTURE, BlockLayout, FrameModel, window_estimates
 
 SCAN_SAMPLES = 1 << 18  # channel-frames per batch of the window scan (3 arrays of 14 floats each: ~90 MB)
 COND_MAX = 1e8  # bound on cond(Ψ_Y/σ_v²) above which the ML least-squares form replaces the Cholesky form
@@ -142,7 +142,7 @@ def hold_last(y: np.ndarray, n: int) -> np.ndarray:
 
 def oufir_iterative(y: np.ndarray, F: np.ndarray, H: np.ndarray, B: np.ndarray, horizon: int, sigma_w: float,
                     sigma_v: float) -> np.ndarray:
-    """Seed 001 Alg. 4 literally, one output at a time, for one channel ``y`` (T,) (NaN = missing) → (T, K).
+    """[PaleRamon-BBox] Alg. 4 literally, one output at a time, for one channel ``y`` (T,) (NaN = missing) → (T, K).
 
     At each n: window m = max(0, n − N + 1) … n; start from the K-point UFIR estimate on the first K valid
     samples of the window with its exact error covariance P_s (notes §1.6), then run the KF (Alg. 1) to n.
@@ -173,7 +173,7 @@ class KalmanWindowFIR(FIRFilter):
     at once (a loop over the window's time steps, vectorised; NaN = predict only) — exact, and no O(L³) gain per
     start-up point. Full windows holding a NaN — with 5 % missing frames and N = 60, 95 % of all windows — were
     estimated the same way, one KF of L steps per window (O(L) per output: 75× the clean-kernel time at B = 20,000
-    box tracks); they now compose per-frame elements associatively (:mod:`filters.window_scan`: O(1) 2×2
+    box tracks); they now compose per-frame elements associatively (:mod:`bboxtune.filters.window_scan`: O(1) 2×2
     compositions per output, whatever L, equal to the per-window KF to ~1e-13). Data are scaled by σ_v (R = 1,
     Q = (σ_w/σ_v)² B Bᵀ). A window with fewer than 2 valid samples gives NaN here (fir_core's fallback)."""
 
@@ -197,7 +197,7 @@ class KalmanWindowFIR(FIRFilter):
     def scan_start(self, y: np.ndarray, valid: np.ndarray, channel: np.ndarray, first: np.ndarray,
                    params: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """How the KF over windows starting at frame ``first`` (P,) of channels ``channel`` (P,) begins, for
-        :mod:`filters.window_scan`: the first frame whose element the window composes, and the prior mean (k, P, 2)
+        :mod:`bboxtune.filters.window_scan`: the first frame whose element the window composes, and the prior mean (k, P, 2)
         and covariance (P, 2, 2) of the state before it (None: a flat prior). ``y`` (k, C', T) scaled by σ_v (k
         channels sharing the missing frames ``valid`` (C', T)), ``params`` arrays (P,). Default: flat prior before
         the window (OUFIR)."""
@@ -206,10 +206,10 @@ class KalmanWindowFIR(FIRFilter):
     def _masked(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, cs: np.ndarray, ns: np.ndarray,
                 L_w: np.ndarray, group: np.ndarray, gparams: dict[str, np.ndarray]) -> None:
         """Full windows holding a NaN (frames (cs, ns), lengths L_w = horizon + EXTRA_SAMPLES), all at once by the
-        associative scan of :mod:`filters.window_scan` (O(1) compositions per window, whatever L), in batches of
+        associative scan of :mod:`bboxtune.filters.window_scan` (O(1) compositions per window, whatever L), in batches of
         channels. Channels with the same gain parameters, missing frames and requested windows (e.g. the four
         coordinates of a box track) share one scan: A, C and J are composed once, their b and η side by side
-        (:class:`filters.window_scan.Elements`). The rare window the scan cannot form from one prefix and one
+        (:class:`bboxtune.filters.window_scan.Elements`). The rare window the scan cannot form from one prefix and one
         suffix runs its own KF (:meth:`_kalman_windows`)."""
         if cs.size == 0:
             return
@@ -320,10 +320,11 @@ class OUFIR(KalmanWindowFIR):
     """Optimal unbiased FIR filter ([PaleRamon-BBox] Alg. 4): minimum-variance unbiased over the last N frames.
 
     Parameters (all per track: scalar or (B,)): ``sigma_w`` (acceleration noise std, units/s²), ``sigma_v``
-    (measurement noise std, units), ``horizon`` N (integer >= 2; None → :func:`filters.horizon.rule_horizon`).
+    (measurement noise std, units), ``horizon`` N (integer >= 2; None → :func:`bboxtune.filters.horizon.rule_horizon`).
     Only σ_w/σ_v shapes the gain; σ_v alone does not change the estimate.
 
-    >>> import numpy as np, filters
+    >>> import numpy as np
+    >>> from bboxtune import filters
     >>> f = filters.make("oufir", filters.constant_velocity(0.05), sigma_w=50.0, sigma_v=4.0, horizon=20)
     >>> bool(np.allclose(f.run(np.arange(30.0)[:, None])[-1], [29.0, 20.0]))  # a ramp is reproduced exactly
     True

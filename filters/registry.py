@@ -3,12 +3,12 @@ imported on first use)."""
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from importlib import import_module
 from typing import Any
 
-from filters.base import Filter
-from filters.model import StateSpaceModel
+from bboxtune.filters.base import Filter
+from bboxtune.filters.model import StateSpaceModel
 
 NAMES: tuple[str, ...] = ("kf", "kf_cmn", "ufir", "ufir_cmn", "ofir", "oufir", "fir", "ukf")
 # The box Kalman filters trackers ship (ByteTrack / DeepSORT, SORT): whole-box back ends with their own parameters
@@ -17,20 +17,20 @@ PEER_NAMES: tuple[str, ...] = ("bytetrack_kf", "sort_kf")
 
 # name -> (module, class); imported on first use
 _REGISTRY: dict[str, tuple[str, str]] = {
-    "kf": ("filters.kf", "KF"),
-    "kf_cmn": ("filters.kf_cmn", "KFCMN"),
-    "ufir": ("filters.ufir", "UFIR"),
-    "ufir_cmn": ("filters.ufir_cmn", "UFIRCMN"),
-    "ofir": ("filters.ofir", "OFIR"),
-    "oufir": ("filters.oufir", "OUFIR"),
-    "fir": ("filters.fir", "KwonFIR"),
-    "ukf": ("filters.ukf", "UKF"),
-    "bytetrack_kf": ("filters.bytetrack_kf", "ByteTrackKF"),
-    "sort_kf": ("filters.sort_kf", "SortKF"),
+    "kf": ("bboxtune.filters.kf", "KF"),
+    "kf_cmn": ("bboxtune.filters.kf_cmn", "KFCMN"),
+    "ufir": ("bboxtune.filters.ufir", "UFIR"),
+    "ufir_cmn": ("bboxtune.filters.ufir_cmn", "UFIRCMN"),
+    "ofir": ("bboxtune.filters.ofir", "OFIR"),
+    "oufir": ("bboxtune.filters.oufir", "OUFIR"),
+    "fir": ("bboxtune.filters.fir", "KwonFIR"),
+    "ukf": ("bboxtune.filters.ukf", "UKF"),
+    "bytetrack_kf": ("bboxtune.filters.bytetrack_kf", "ByteTrackKF"),
+    "sort_kf": ("bboxtune.filters.sort_kf", "SortKF"),
 }
 
 
-@lru_cache(maxsize=None)
+@cache
 def filter_class(name: str) -> type[Filter]:
     """The :class:`Filter` subclass of back end ``name`` (one of :data:`NAMES` or :data:`PEER_NAMES`)."""
     if name not in _REGISTRY:

@@ -10,13 +10,14 @@ Per track, with dt = 1 frame:
   tracker each frame and updates the matched ones); frames before the first detection: NaN;
 * box from a state: w = √(s r), h = s / w.
 
-No parameters: the published constants. It runs on :class:`filters.bytetrack_kf.BoxKF` (four uncoupled
+No parameters: the published constants. It runs on :class:`bboxtune.filters.bytetrack_kf.BoxKF` (four uncoupled
 [coordinate, rate] blocks, the aspect's rate fixed at 0), so it shares ByteTrack's interface: exact in frame units
 (``IN_FRAMES``; τ only converts the rates to units per second), output states (B, T, 8) = (cx, cy, w, h), then their
-rates per second (ẇ = w s' / 2s, ḣ = h s' / 2s), and ``run_from`` with a :class:`filters.base.Carry` holding
+rates per second (ẇ = w s' / 2s, ḣ = h s' / 2s), and ``run_from`` with a :class:`bboxtune.filters.base.Carry` holding
 [u, v, s, r, u', v', s', 0] (rates per second) and its block-diagonal covariance. Boxes need w, h > 0.
 
->>> import numpy as np, filters
+>>> import numpy as np
+>>> from bboxtune import filters
 >>> f = filters.make("sort_kf", filters.constant_velocity(1 / 30, ndim=4))
 >>> f.run(np.array([[50.0, 60.0, 20.0, 40.0], [np.nan] * 4, [52.0, 61.0, 22.0, 40.0]]))[:, :4].round(2)
 array([[50.  , 60.  , 20.  , 40.  ],
@@ -30,7 +31,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.bytetrack_kf import BoxKF, HeightNoise
+from bboxtune.filters.bytetrack_kf import BoxKF, HeightNoise
 
 
 def _column(*values: float) -> np.ndarray:

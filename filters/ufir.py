@@ -14,12 +14,12 @@ one output point at a time, used as the reference in the tests and the benchmark
 
 Implementation (all vectorised over channels; the only Python loops are over a few start-up-length buckets and
 the K = 2 state columns): full windows without NaN use the cached gain ``(C̄ᵀC̄)⁻¹C̄ᵀ`` (QR, :func:`ls_gains`)
-as an FIR kernel (:mod:`filters.fir_core`); start-up frames use the forward batch form (notes §1.1) whose
+as an FIR kernel (:mod:`bboxtune.filters.fir_core`); start-up frames use the forward batch form (notes §1.1) whose
 normal equations are cumulative sums over frames; full windows with NaN solve their own normal equations, the
 clean window's corrected by lag moments of per-frame signals (missing frames, undifferenced rows) — no per-window
 gains.
 
-Conventions (shared with :mod:`filters.fir_core`): frame 0 is the first frame; start-up frames n < N − 1 use
+Conventions (shared with :mod:`bboxtune.filters.fir_core`): frame 0 is the first frame; start-up frames n < N − 1 use
 all samples so far (growing horizon, "m = 0"); missing samples (NaN) are dropped from the window's least
 squares; windows with fewer than 2 valid samples (e.g. frame 0) output the latest valid measurement as
 position and velocity 0.
@@ -32,9 +32,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.fir_core import FIRFilter, check_fir_params
-from filters.lag_moments import lag_moments, lag_moments_real, lag_polynomial, linear_product
-from filters.model import constant_velocity, matrix_powers
+from bboxtune.filters.fir_core import FIRFilter, check_fir_params
+from bboxtune.filters.lag_moments import lag_moments, lag_moments_real, lag_polynomial, linear_product
+from bboxtune.filters.model import constant_velocity, matrix_powers
 
 
 class UFIR(FIRFilter):
@@ -330,7 +330,7 @@ def _batch_start(rows: list[int], H: np.ndarray, F_inv: np.ndarray,
     for count in range(-(-K // H.shape[0]), len(rows) + 1):  # at least K scalar rows
         used = rows[:count]
         back = [np.linalg.matrix_power(F_inv, used[-1] - l) for l in used]  # F^{−(s−l)}
-        C_ms = np.vstack([(H - Psi[l] * H @ F_inv) @ B for l, B in zip(used, back)])  # rows D_l F^{−(s−l)}
+        C_ms = np.vstack([(H - Psi[l] * H @ F_inv) @ B for l, B in zip(used, back, strict=False)])  # rows D_l F^{−(s−l)}
         scale = np.linalg.norm(np.vstack([H @ B for B in back]), axis=0)
         singular_values = np.linalg.svd(C_ms / scale, compute_uv=False)
         if singular_values[-1] > 1e-10 * singular_values[0]:

@@ -4,7 +4,7 @@ Measurement noise ``v_l = ψ v_{l−1} + ξ_l`` is whitened by differencing ([Sh
 
     z_l = y_l − ψ y_{l−1} = D x_l + v̄_l,      D = H − ψ H F⁻¹        (CV model: D = [1 − ψ, ψτ])
 
-and UFIR-CMN is the ordinary UFIR of :mod:`filters.ufir` applied to (z, D): over the horizon of N
+and UFIR-CMN is the ordinary UFIR of :mod:`bboxtune.filters.ufir` applied to (z, D): over the horizon of N
 differenced samples ``z_m … z_n`` (N + 1 raw samples ``y_{m−1} … y_n``), with rows ``D F^{−(n−l)}``,
 
     x̂_n = (C̄ᵀ C̄)⁻¹ C̄ᵀ Z,      C̄ = [D F^{−(N−1)}; …; D F^{−1}; D]
@@ -18,9 +18,9 @@ sample right after a missing one enter undifferenced, ``z_l = y_l`` with row ``H
 (n < N: growing horizon, frames 0 … n) uses ``[y_0, z_1, …, z_n]`` and ψ = 0 reproduces UFIR on every frame,
 gaps included. The oldest raw sample of a full window is only the predecessor of the next. A missing y_l
 gives no row. Windows whose rows do not determine the state (fewer than 2, or a rank-deficient pattern) output
-the latest valid measurement as position and velocity 0. :func:`filters.ufir.ufir_iterative` with ``psi`` is
+the latest valid measurement as position and velocity 0. :func:`bboxtune.filters.ufir.ufir_iterative` with ``psi`` is
 the literal Algorithm 2 reference under the same conventions. The vectorised start-up and NaN-window forms are
-inherited from :class:`filters.ufir.UFIR` (they carry Ψ_l); only the gain, its rows and observability differ.
+inherited from :class:`bboxtune.filters.ufir.UFIR` (they carry Ψ_l); only the gain, its rows and observability differ.
 """
 
 from __future__ import annotations
@@ -29,15 +29,23 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.fir_core import check_fir_params
-from filters.ufir import (UFIR, back_projected_rows, determined, ls_gains, ls_gains_of_columns, row_kinds,
-                          row_statistics)
-from filters.validation import check_psi
+from bboxtune.filters.fir_core import check_fir_params
+from bboxtune.filters.ufir import (
+    UFIR,
+    back_projected_rows,
+    determined,
+    ls_gains,
+    ls_gains_of_columns,
+    row_kinds,
+    row_statistics,
+)
+from bboxtune.filters.validation import check_psi
 
 
 class UFIRCMN(UFIR):
     """UFIR for coloured measurement noise. Parameters (scalars or per-track (B,) arrays): ``psi``
-    (0 <= ψ <= 0.99: beyond, windows with missing samples lose accuracy, :mod:`filters.validation`), ``horizon`` N (differenced samples, integer >= 2; None → the white-noise N_opt rule),
+    (0 <= ψ <= 0.99: beyond, windows with missing samples lose accuracy, :mod:`bboxtune.filters.validation`),
+    ``horizon`` N (differenced samples, integer >= 2; None → the white-noise N_opt rule),
     ``sigma_w``, ``sigma_v`` (σ_ξ; used only by that rule)."""
 
     name: ClassVar[str] = "ufir_cmn"
@@ -78,7 +86,7 @@ class UFIRCMN(UFIR):
         return determined(*(a.sum(axis=-1) for a in row_statistics(plain, diff)), params["psi"])
 
     def _kinds(self, valid: np.ndarray, params: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """Row kinds (P, L) of raw windows ``valid`` (P, L) (:func:`filters.ufir.row_kinds`); the oldest sample
+        """Row kinds (P, L) of raw windows ``valid`` (P, L) (:func:`bboxtune.filters.ufir.row_kinds`); the oldest sample
         of a full window (L = N + 1) is only the predecessor of the next and gives no row."""
         plain, diff = row_kinds(valid)
         plain[:, 0] &= valid.shape[1] < params["horizon"] + self.EXTRA_SAMPLES  # start-up: frame 0 is a row

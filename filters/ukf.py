@@ -20,13 +20,13 @@ n + λ computed as α²(n + κ)). Deviations from the exact mean make χ_0's dev
 effect on this linear model. A generic UKF instead forms Σ W^m χ around x, adding rounding of order
 eps·|W_i|·‖√P‖ to the means — 2e4 px of error on a 200 px track with σ_v = 1e20, ~1e-9 relative with [Raj-UKF]'s
 α = 1e-3 (W_0^m ≈ −1e6), all digits at per-frame noise ratios σ_w τ²/σ_v beyond 1e14 or for κ next to −2.
-The covariance recursion does not depend on the data, so — as for :class:`filters.kf.KF`
-(:mod:`filters.kalman_core`) — it runs once per unique (parameters, prior, frame kinds) row until its steady state
+The covariance recursion does not depend on the data, so — as for :class:`bboxtune.filters.kf.KF`
+(:mod:`bboxtune.filters.kalman_core`) — it runs once per unique (parameters, prior, frame kinds) row until its steady state
 (the posterior covariance repeats bit for bit), and every frame is the affine map x_n = (I − K_n H) F x_{n−1} +
 K_n y_n applied to all channels at once (:func:`sigma_gain_recursion`; T = 1e6 frames in ~2 s instead of ~230 s);
 the camera-motion channels (3 states, 2 measurements) run the same linear UKF frame by frame
-(:func:`unscented_filter`). This UKF equals :class:`filters.kf.KF` to rounding for every α, β, κ in range (tests:
-1e-12 relative) and over the whole parameter range of :mod:`filters.validation` (position error against a
+(:func:`unscented_filter`). This UKF equals :class:`bboxtune.filters.kf.KF` to rounding for every α, β, κ in range (tests:
+1e-12 relative) and over the whole parameter range of :mod:`bboxtune.filters.validation` (position error against a
 40-digit reference <= 3e-13 relative for noise ratios from 1e-12 to 1e100).
 
 Camera motion (``camera_motion=True``; [Raj-UKF] eq. 17)
@@ -50,14 +50,15 @@ eq. 18 (camera velocity as a known input). Camera states are added to the first 
 (cx, cy), so eq. 17's 8 states become 2 × 3 (the unobservable frame position is not carried); box size
 (w, h) is not affected by camera translation. Output is the image state [q, r], like every other filter.
 
-Conventions: predict-first with prior ``x0``/``P0`` (as :class:`filters.kf.KF`); ``x0=None`` initialises at the
+Conventions: predict-first with prior ``x0``/``P0`` (as :class:`bboxtune.filters.kf.KF`); ``x0=None`` initialises at the
 first finite y as [y, 0] (c = 0) with covariance P0 or diag(σ_v², (10³σ_v/τ)²) (c variance (10³σ_v/τ)²,
 independent of r); frames before that are NaN. NaN in y or u = that measurement is missing (update with the
 rest, predict only if nothing is left). ``run_from(y, carry, u)`` continues from the posterior a previous call
-ended in (:class:`filters.base.Carry`; with camera_motion its ``c``, ``P_c`` hold the camera state c and its
+ended in (:class:`bboxtune.filters.base.Carry`; with camera_motion its ``c``, ``P_c`` hold the camera state c and its
 covariance with [q, r, c]) with this call's parameters.
 
->>> import numpy as np, filters
+>>> import numpy as np
+>>> from bboxtune import filters
 >>> f = filters.make("ukf", filters.constant_velocity(0.05, ndim=2), camera_motion=True, sigma_c=5.0)
 >>> f.run(np.zeros((4, 2)), u=np.ones((4, 2))).shape
 (4, 4)
@@ -69,11 +70,19 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from filters.base import AxisCarry, Filter
-from filters.kalman_core import (INIT, UPDATE_Y, VELOCITY_PRIOR_SCALE, WAIT, channel_start, check_prior,
-                                 filter_channels, frame_kinds)
-from filters.model import StateSpaceModel
-from filters.validation import check_range, check_sigma
+from bboxtune.filters.base import AxisCarry, Filter
+from bboxtune.filters.kalman_core import (
+    INIT,
+    UPDATE_Y,
+    VELOCITY_PRIOR_SCALE,
+    WAIT,
+    channel_start,
+    check_prior,
+    filter_channels,
+    frame_kinds,
+)
+from bboxtune.filters.model import StateSpaceModel
+from bboxtune.filters.validation import check_range, check_sigma
 
 SCALING_RANGES = {"alpha": (1e-4, 1e4, False), "beta": (0.0, 1e4, False), "kappa": (-2.0, 1e4, True)}  # open low
 
@@ -84,7 +93,7 @@ class UKF(Filter):
     prior-distribution weight; 2 is optimal for Gaussians), ``kappa`` (−2 < κ <= 1e4, secondary scaling: n + κ > 0
     for n = 2 states), ``sigma_c`` (camera acceleration noise std, units/s²) and ``sigma_u`` (std of the
     camera-velocity measurement u, units/s) — the last two only with ``camera_motion=True``. Shared: ``x0`` (K,),
-    ``P0`` (K, K), ``camera_motion`` (bool). σ's within :data:`filters.validation.SIGMA_RANGE`.
+    ``P0`` (K, K), ``camera_motion`` (bool). σ's within :data:`bboxtune.filters.validation.SIGMA_RANGE`.
     Defaults α = 1, β = 2, κ = 0 ([Raj-UKF] suggests α = 1e-3; any α in range is accurate, module docstring)."""
 
     name: ClassVar[str] = "ukf"
@@ -233,7 +242,7 @@ def sigma_gain_recursion(kinds: np.ndarray, params: np.ndarray, P_start: np.ndar
     """The two-state UKF's affine coefficients (T, 6, G) = [(I − K H) F row-major, K] of G rows with frame
     ``kinds`` (G, T), parameters [σ_w, σ_v, α, β, κ] (G, 5) and start covariance (2, 2, G), the frame from which
     they stay constant, and the last posterior covariance — the contract of
-    :func:`filters.kalman_core.gain_recursion`, with the covariances of :func:`sigma_predict` and
+    :func:`bboxtune.filters.kalman_core.gain_recursion`, with the covariances of :func:`sigma_predict` and
     :func:`sigma_update`."""
     G, T = kinds.shape
     if G == 1:
@@ -291,8 +300,8 @@ def _sigma_recursion_one_row(kinds: np.ndarray, params: np.ndarray, P_start: np.
         """Σ W^c χ χᵀ of the centred points χ = [0, ±(a0, a1), ±(c0, c1)] (eqs. 4, 8, 10)."""
         d = ((0.0, 0.0), (a0, a1), (c0, c1), (-a0, -a1), (-c0, -c1))
         w = (wc0, wi, wi, wi, wi)
-        return (sum(wk * x * x for wk, (x, _) in zip(w, d)), sum(wk * x * y for wk, (x, y) in zip(w, d)),
-                sum(wk * y * y for wk, (_, y) in zip(w, d)))
+        return (sum(wk * x * x for wk, (x, _) in zip(w, d, strict=False)), sum(wk * x * y for wk, (x, y) in zip(w, d, strict=False)),
+                sum(wk * y * y for wk, (_, y) in zip(w, d, strict=False)))
 
     def root(a00: float, a01: float, a11: float) -> tuple[float, float, float] | None:
         """Cholesky root of (n + λ) [[a00, a01], [a01, a11]]: columns (l00, l10), (0, l11); None if not definite."""
@@ -338,7 +347,7 @@ def _sigma_recursion_one_row(kinds: np.ndarray, params: np.ndarray, P_start: np.
 def unscented_filter(y: np.ndarray, kinds: np.ndarray, F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray,
                      x_start: np.ndarray, P_start: np.ndarray, weights: tuple[np.ndarray, ...]) -> np.ndarray:
     """Batched linear UKF over C channels (channel axis last), frame by frame: measurements ``y`` (p, T, C) with
-    NaN = missing (row 0 decides the frame ``kinds`` (C, T) of :func:`filters.kalman_core.frame_kinds`), transition
+    NaN = missing (row 0 decides the frame ``kinds`` (C, T) of :func:`bboxtune.filters.kalman_core.frame_kinds`), transition
     ``F`` (n, n), observation ``H`` (p, n), ``Q`` (n, n, C), ``R`` (p, C) diagonal measurement variances, start
     state/covariance (n, C)/(n, n, C), ``weights`` from :func:`scaled_weights`. Means are propagated exactly
     (x⁻ = F x, ẑ = H x⁻), covariances by :func:`sigma_predict` and :func:`sigma_update`.

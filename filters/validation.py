@@ -20,7 +20,7 @@ quantity               allowed                           why
                                                          2e-7 at 0.99, 1e-3 at 0.999, all digits at 0.9999;
                                                          <= 2e-14 from N = 14 on); the envs' ψ range
 horizon N (FIR)        integers 2 … 100,000              ``check_horizon``
-α, β, κ (ukf)          [1e-4, 1e4], [0, 1e4], (−2, 1e4]  sigma-point scaling (filters.ukf: accurate over all of it)
+α, β, κ (ukf)          [1e-4, 1e4], [0, 1e4], (−2, 1e4]  sigma-point scaling (bboxtune.filters.ukf: accurate over all of it)
 y, u, x0 entries       finite, abs(·) <= ``VALUE_MAX`` = 1e30; NaN marks a missing y or u
 P0 entries             abs(·) <= ``VARIANCE_MAX`` = 1e60   a variance of at most (1e30)²
 P0 eigenvalues         <= ``PRIOR_MAX`` σ_v² = 1e8 σ_v²   per coordinate [p, v], in frame units [p, v τ]: a wider
@@ -32,7 +32,7 @@ P0 eigenvalues         <= ``PRIOR_MAX`` σ_v² = 1e8 σ_v²   per coordinate [p,
 
 Within these ranges every back end returns finite estimates from a track's first finite measurement on (tested
 with random parameters and data over the whole range; just outside, the ValueError names the parameter); a
-non-finite estimate there raises ``FloatingPointError`` (:meth:`filters.base.Filter.run`) instead of being
+non-finite estimate there raises ``FloatingPointError`` (:meth:`bboxtune.filters.base.Filter.run`) instead of being
 returned.
 """
 

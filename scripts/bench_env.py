@@ -2,10 +2,10 @@
 
     python scripts/bench_env.py [--backend ufir_cmn] [--episodes 1000] [--candidates 256] [--track-length 500]
 
-The command is :func:`agents.commands.bench_env.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.bench_env.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.bench_env import main
+from bboxtune.agents.commands.bench_env import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -4,10 +4,10 @@
                                     [--wide-tracks 20000] [--wide-frames 500] [--missing 0.05]
                                     [--long-frames 1000000] [--sections reference backends wide long]
 
-The command is :func:`agents.commands.bench_filters.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.bench_filters.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.bench_filters import main
+from bboxtune.agents.commands.bench_filters import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

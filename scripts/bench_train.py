@@ -2,10 +2,10 @@
 
     python scripts/bench_train.py [--timesteps 100000] [--out DIR] [-- TRAIN_ARGS ...]
 
-The command is :func:`agents.commands.bench_train.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.bench_train.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.bench_train import main
+from bboxtune.agents.commands.bench_train import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -3,10 +3,10 @@
 
     python scripts/bench_video.py [--videos 5] [--frames 200]
 
-The command is :func:`agents.commands.bench_video.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.bench_video.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.bench_video import main
+from bboxtune.agents.commands.bench_video import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

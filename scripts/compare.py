@@ -6,10 +6,10 @@
     python scripts/compare.py --model RUN --env-kwargs source=otb_tracker "trackers=[SiamRPN++, CFNet, STRUCK, MDNet]"
     python scripts/compare.py --model runs/ppo_s0 runs/ppo_s1 runs/ppo_s2 --out runs/ppo_seeds   # across training seeds
 
-The command is :func:`agents.commands.compare.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.compare.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.compare import main
+from bboxtune.agents.commands.compare import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

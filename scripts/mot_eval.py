@@ -2,10 +2,10 @@
 
     python scripts/mot_eval.py --mot-root ../shared/data/mot15 --split test --out runs/mot_eval
 
-The command is :func:`agents.commands.mot_eval.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.mot_eval.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.mot_eval import main
+from bboxtune.agents.commands.mot_eval import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -2,10 +2,10 @@
 
     python scripts/mot_fit.py --mot-root ../shared/data/mot15 --out docs/results/mot15_noise [--episodes 500] [--seed 0]
 
-The command is :func:`agents.commands.mot_fit.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.mot_fit.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.mot_fit import main
+from bboxtune.agents.commands.mot_fit import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -2,10 +2,10 @@
 
     python scripts/otb_eval.py --otb-root ../shared/data/otb [--tracker NAME ...] [--json]
 
-The command is :func:`agents.commands.otb_eval.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.otb_eval.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.otb_eval import main
+from bboxtune.agents.commands.otb_eval import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

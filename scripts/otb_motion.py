@@ -2,10 +2,10 @@
 
     python scripts/otb_motion.py --otb-root ../shared/data/otb --out docs [--tracks 300] [--seed 0]
 
-The command is :func:`agents.commands.otb_motion.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.otb_motion.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.otb_motion import main
+from bboxtune.agents.commands.otb_motion import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

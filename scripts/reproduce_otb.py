@@ -3,10 +3,10 @@
     python scripts/reproduce_otb.py --out DIR [--otb-root DIR] [--mc N] [--seed S] [--quick]
 
 Writes ``DIR/reproduction_otb.md`` and its figures, with the same numbers as the full run. The command is
-:func:`agents.commands.reproduce_otb.main`; ``--help`` describes every flag.
+:func:`bboxtune.agents.commands.reproduce_otb.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.reproduce_otb import main
+from bboxtune.agents.commands.reproduce_otb import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

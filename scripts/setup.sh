@@ -38,7 +38,7 @@ main() {
     cd "$(dirname "${BASH_SOURCE[0]}")/.."
     [ -x "$VENV_PYTHON" ] || python3 -m venv .venv
     install_torch
-    "$VENV_PYTHON" -m pip install -q -e ".[test]"
+    "$VENV_PYTHON" -m pip install -q -e ".[dev]"  # the tests and the maintainers' checks (scripts/check.sh)
     check_cpu_torch
 }
 

@@ -6,10 +6,10 @@ tracker's boxes alone (never the ground truth).
     python scripts/smooth.py --results trackers/SiamFC --out DIR --pretrained sim_ufir_cmn --otb-root $OTB_ROOT
     python scripts/smooth.py --results trackers/SiamFC --out DIR --model runs/ppo_ufir_cmn_otb_tracker_s0
 
-The command is :func:`agents.commands.smooth.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.smooth.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.smooth import main
+from bboxtune.agents.commands.smooth import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

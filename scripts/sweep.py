@@ -5,10 +5,10 @@
     python scripts/sweep.py --out runs/sweep_smoke --smoke       # two tiny trials, seconds
     python scripts/sweep.py --out runs/sweep --address auto ...  # the same sweep on a running Ray cluster
 
-The command is :func:`agents.commands.sweep.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.sweep.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.sweep import main
+from bboxtune.agents.commands.sweep import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -6,10 +6,10 @@
     python scripts/track_video.py --frames $OTB/Car4 --detector template --filter ufir_cmn --otb-root $OTB_ROOT
     python scripts/track_video.py --synthetic --detector orb --tuned runs/video_table/tuned/orb-kf.json
 
-The command is :func:`agents.commands.track_video.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.track_video.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.track_video import main
+from bboxtune.agents.commands.track_video import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -6,10 +6,10 @@
     python scripts/train.py --resume runs/ppo_ufir_cmn_sim_s0   # continue a killed run
     python scripts/train.py --resume runs/ppo_ufir_cmn_sim_s0 --timesteps 200000   # train it on to 200k in all
 
-The command is :func:`agents.commands.train.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.train.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.train import main
+from bboxtune.agents.commands.train import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

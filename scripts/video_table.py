@@ -5,10 +5,10 @@
     python scripts/video_table.py --backends ufir_cmn kf --cache ~/.cache/bboxtune/video --out runs/video_table
     python scripts/video_table.py --tuned runs/ppo_ufir_cmn_video_s0     # a train.py run (or a tuned.json)
 
-The command is :func:`agents.commands.video_table.main`; ``--help`` describes every flag.
+The command is :func:`bboxtune.agents.commands.video_table.main`; ``--help`` describes every flag.
 """
 
-from agents.commands.video_table import main
+from bboxtune.agents.commands.video_table import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -1,5 +1,6 @@
 """The packages' import structure (README "Architecture"): layers import downwards only, no import cycles, no
-imports hidden inside functions except the documented ones, no Gymnasium below the env layer.
+imports hidden inside functions except the documented ones, no Gymnasium below the env layer, and every import of
+ours through the one namespace ``bboxtune`` (module names here are written without that prefix).
 
 Run as a script (``python tests/test_architecture.py [ROOT]``) it prints the counts for any checkout."""
 
@@ -11,16 +12,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-PACKAGES = ("filters", "envs", "agents")
+PACKAGES = ("filters", "envs", "agents")  # importable as bboxtune.filters, ... (pyproject's package-dir)
+NAMESPACE = "bboxtune"
 # the layers, lowest first: a module imports only modules of its own layer or a lower one
 LAYERS = (("filters",), ("envs.data",), ("envs.video",), ("envs.episodes",),
-          ("envs", "envs.track_env", "envs.tune_env", "envs.retune_env", "envs.vector", "envs.render"), ("agents",))
+          ("envs", "envs.track_env", "envs.tune_env", "envs.retune_env", "envs.vector", "envs.render"),
+          ("agents.readers", "agents.cli", "agents.splits", "agents.episodes"), ("agents.policies",), ("agents.training",),
+          ("agents.evaluation",), ("agents.smoothing", "agents", "agents.reproduce"), ("agents.commands",))
 # imports inside functions that stay, with the reason: an optional extra (ray, tensorboard; filterpy of the test
-# extra), or torch / SB3 deferred until a model is loaded (agents.tune is imported by every ``import agents``;
+# extra), or torch / SB3 deferred until a model is loaded (agents.smoothing.tuner is imported by every ``import
+# bboxtune.agents``;
 # importing torch there costs seconds)
-DEFERRED = {("agents.sweep", "ray"), ("agents.commands.sweep", "ray"), ("agents.commands.train", "tensorboard"),
-            ("agents.commands.bench_filters", "filterpy"), ("agents.tune", "stable_baselines3"),
-            ("agents.tune", "agents.runs"), ("agents.tune", "agents.run_files")}
+DEFERRED = {("agents.training.sweep", "ray"), ("agents.commands.sweep", "ray"), ("agents.commands.train", "tensorboard"),
+            ("agents.commands.bench_filters", "filterpy"), ("agents.smoothing.tuner", "stable_baselines3"),
+            ("agents.smoothing.tuner", "agents.training.runs"), ("agents.smoothing.tuner", "agents.training.run_files")}
 NO_GYMNASIUM = ("filters", "envs.data", "envs.video", "envs.episodes")
 
 
@@ -31,11 +36,17 @@ class ImportGraph:
     deferred: list[tuple[str, str, str]] = field(default_factory=list)  # (module, function, imported name)
     deferred_edges: dict[str, set[str]] = field(default_factory=dict)  # what those import, of ours
     external: dict[str, set[str]] = field(default_factory=dict)  # top-level names of third-party imports
+    bare: list[tuple[str, str]] = field(default_factory=list)  # (module, name): ours imported without the namespace
 
 
 def _name(root: Path, path: Path) -> str:
     parts = path.relative_to(root).with_suffix("").parts
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _short(name: str) -> str:
+    """``bboxtune.envs.data`` -> ``envs.data``; any other name as it is."""
+    return name.removeprefix(NAMESPACE + ".")
 
 
 def import_graph(root: Path = REPO) -> ImportGraph:
@@ -58,16 +69,19 @@ def import_graph(root: Path = REPO) -> ImportGraph:
                  for n in ast.walk(f)}
         for node in ast.walk(tree):
             if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
+                written = [a.name for a in node.names]
+                names = [_short(n) for n in written]
             elif isinstance(node, ast.ImportFrom):
                 base = node.module or ""
                 if node.level:
                     up = package.split(".")[: len(package.split(".")) - node.level + 1]
                     base = ".".join(up + ([base] if base else []))
-                subs = [f"{base}.{a.name}" for a in node.names]
-                names = subs if all(s in modules for s in subs) else [base]
+                written = [base]
+                subs = [_short(f"{base}.{a.name}") for a in node.names]
+                names = subs if all(s in modules for s in subs) else [_short(base)]
             else:
                 continue
+            graph.bare.extend((mod, n) for n in written if not getattr(node, "level", 0) and n.split(".")[0] in PACKAGES)
             hidden = id(node) in in_function
             for name in names:
                 target = ours(name)
@@ -150,6 +164,21 @@ def test_layers_import_downwards_only() -> None:
 def test_imports_inside_functions_are_only_the_documented_deferred_ones() -> None:
     extra = [(m, f, n) for m, f, n in GRAPH.deferred if (m, n.split(".")[0]) not in DEFERRED and (m, n) not in DEFERRED]
     assert extra == []
+
+
+def test_every_import_of_ours_goes_through_the_namespace() -> None:
+    """``import filters`` would find the source folder from a checkout only, and a second copy of the module."""
+    assert GRAPH.bare == []
+
+
+def test_tests_and_scripts_import_the_namespace_too() -> None:
+    bare = []
+    for path in sorted([*(REPO / "tests").rglob("*.py"), *(REPO / "scripts").glob("*.py"), *(REPO / "docs").rglob("*.py")]):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            written = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                       else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            bare += [(path.relative_to(REPO).as_posix(), n) for n in written if n.split(".")[0] in PACKAGES]
+    assert bare == []
 
 
 def test_no_gymnasium_below_the_env_layer() -> None:

@@ -6,17 +6,18 @@ For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks)
 
 1. steps/s through the public API: ``env.reset(); env.step(action)`` on ``gym.make``'s wrapped env (one
    step per episode, so every step includes drawing, simulating and summarising a new track and the
-   fixed-rule run it is compared with — prepared in blocks, see ``envs.tune_env``) — target >= 1,000 steps/s;
+   fixed-rule run it is compared with — prepared in blocks, see ``bboxtune.envs.tune_env``) — target >= 1,000 steps/s;
    and, as a ratio to it, ``env.reset(seed=i); env.step(action)`` (a reseed prepares one episode, not a block);
 2. episodes/s through the batched scoring path ``env.unwrapped.score(actions)`` with ``--candidates``
    distinct actions per call (each candidate is one filtered and scored episode) — target >= 5,000;
 3. the cost of a step in runs of the filter alone (one candidate, gains cached), from the same run, as a ratio;
-4. env steps/s of the batched vec env (``agents.batched.TuneVecEnv``, ``--n-envs`` tracks per step, what
+4. env steps/s of the batched vec env (``bboxtune.agents.training.batched.TuneVecEnv``, ``--n-envs`` tracks per step, what
    ``train.py`` trains on; targets >= 20,000 for ufir_cmn, >= 10,000 for kf_cmn), as a ratio to [1] and to
    filterpy's ``KalmanFilter`` loop running the same tracks (``--filterpy-tracks`` of them; tracks/s).
 
 Rates are the best of ``--repeat`` timed blocks (the machine is shared; the best block is the least
-disturbed), with the median in parentheses. Every block draws fresh random actions, so no filter gain comes from the cache of an earlier
+disturbed), with the median in parentheses. Every block draws fresh random actions, so no filter gain comes from the
+cache of an earlier
 block (the fixed rule's gains repeat and are cached, as in training). No unit test asserts on time.
 """
 
@@ -27,14 +28,16 @@ import time
 import gymnasium as gym
 import numpy as np
 
-import envs  # noqa: F401  (registers the environments)
-import filters
-from agents.cli import ArgumentParser, argument_errors, nonnegative_int, positive_int
-from agents.commands.bench_filters import filterpy_loop
-from agents.runs import make_vec
-from envs.episodes.actions import BACKENDS
-from envs.episodes.config import EnvConfig
-from envs.episodes.scoring import run_positions
+from bboxtune import (
+    envs,  # noqa: F401  (registers the environments)
+    filters,
+)
+from bboxtune.agents.cli import ArgumentParser, argument_errors, nonnegative_int, positive_int
+from bboxtune.agents.commands.bench_filters import filterpy_loop
+from bboxtune.agents.training.runs import make_vec
+from bboxtune.envs.episodes.actions import BACKENDS
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.scoring import run_positions
 
 
 def rates(count: int, fn, repeat: int) -> tuple[float, float]:

@@ -9,11 +9,11 @@ tracks of ``--frames`` frames. Prints
 
 1. batched ``kf`` vs filterpy's ``KalmanFilter`` predict/update loop (same F, H, Q = σ_w² B Bᵀ, R = σ_v²,
    x0, P0) on ``--ref-tracks`` tracks (default: all), ratio of frame-update rates and max |Δ|;
-2. ``ufir`` at N = 160 (kernel form) vs the iterative per-point Algorithm 2 (:func:`filters.ufir.ufir_iterative`)
+2. ``ufir`` at N = 160 (kernel form) vs the iterative per-point Algorithm 2 (:func:`bboxtune.filters.ufir.ufir_iterative`)
    run on ``--iter-tracks`` tracks (it costs ~N 2×2 steps per output point; its rate is per point, so the
    ratio does not depend on how many tracks it runs on), ratio of rates and max |Δ| on those tracks;
 3. frame-updates/s (tracks × frames / s) of every back end on all tracks, and of the peer box filters
-   (``filters.PEER_NAMES``) beside ``kf`` on as many box tracks (those of section 4, ``--missing`` of frames missing);
+   (``bboxtune.filters.PEER_NAMES``) beside ``kf`` on as many box tracks (those of section 4, ``--missing`` of frames missing);
 4. wide batches: every back end on ``--wide-tracks`` box tracks (cx, cy, w, h; τ = 1/30, random walks around
    200 px) of ``--wide-frames`` frames, without missing frames and with a share ``--missing`` of frames missing
    (whole boxes, independently per frame): seconds (wall and CPU) and peak RSS of each, and the ratios
@@ -40,10 +40,10 @@ from dataclasses import replace
 
 import numpy as np
 
-import filters
-from agents.cli import ArgumentParser, HelpFormatter, float_range, nonnegative_int, positive_int
-from envs.data.simulate import PRESETS, simulate
-from filters.ufir import ufir_iterative
+from bboxtune import filters
+from bboxtune.agents.cli import ArgumentParser, HelpFormatter, float_range, nonnegative_int, positive_int
+from bboxtune.envs.data.simulate import PRESETS, simulate
+from bboxtune.filters.ufir import ufir_iterative
 
 SECTIONS = ("reference", "backends", "wide", "long")
 SIGMA_W, SIGMA_V, PSI = 50.0, 4.0, 0.6  # every section: the [Shmaliy-CMN] set-up (px/s², px, –)
@@ -198,7 +198,7 @@ def speed_sections(args: argparse.Namespace) -> None:
         boxes = box_tracks(args.tracks, args.frames, args.missing, args.seed)
         boxes[..., 2:] = 20.0 + np.abs(boxes[..., 2:] - 200.0)  # sizes >= 20 px: the peers need w, h > 0
         print(f"    box tracks ({args.tracks} x {args.frames}, {args.missing:.0%} of frames missing): the peer filters "
-              "(filters.PEER_NAMES, published defaults) beside kf, box frame-updates/s:")
+              "(bboxtune.filters.PEER_NAMES, published defaults) beside kf, box frame-updates/s:")
         for name in ("kf", *filters.PEER_NAMES):
             params = backend_params(name, args.horizon) if name == "kf" else {}
             flt = filters.make(name, filters.constant_velocity(TAU, ndim=4), **params)

@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from agents.cli import ArgumentParser, out_dir, positive_int
+from bboxtune.agents.cli import ArgumentParser, out_dir, positive_int
 
 REPO = Path(__file__).resolve().parents[2]  # the checkout: train.py runs as scripts/train.py there
 CARTPOLE = ("import sys, torch; from stable_baselines3 import PPO; torch.set_num_threads(1); "

@@ -11,10 +11,10 @@ import time
 
 import numpy as np
 
-from agents.cli import ArgumentParser, argument_errors, positive_int
-from envs.video.camera import background_shift
-from envs.video.detectors import DETECTORS, detect_video, make_detector
-from envs.video.synthetic import VideoRanges, synthetic_video
+from bboxtune.agents.cli import ArgumentParser, argument_errors, positive_int
+from bboxtune.envs.video.camera import background_shift
+from bboxtune.envs.video.detectors import DETECTORS, detect_video, make_detector
+from bboxtune.envs.video.synthetic import VideoRanges, synthetic_video
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     truth = [synthetic_video(2_000_000 + i, ranges).boxes[0] for i in range(args.videos)]
     for name in DETECTORS:
         start = time.perf_counter()
-        for frames, box in zip(videos, truth):
+        for frames, box in zip(videos, truth, strict=False):
             detect_video(make_detector(name), frames, box)
         rate = args.videos * args.frames / (time.perf_counter() - start)
         print(f"{name:9s} {rate:7.0f} frames/s")

@@ -6,9 +6,10 @@
     python scripts/compare.py --model runs/ppo_s0 runs/ppo_s1 runs/ppo_s2 --out runs/ppo_seeds   # across training seeds
 
 The env: the run's own (config.yml's env id and env_kwargs) unless --env / --env-kwargs KEY=VALUE ... change it
-(any envs.episodes.config.EnvConfig field, YAML values, KEY:VALUE also accepted, split at the first = or :; checked before
+(any bboxtune.envs.episodes.config.EnvConfig field, YAML values, KEY:VALUE also accepted, split at the first = or :;
+checked before
 any work). The model must fit the evaluation env: equal observation and action spaces and actions that set the
-same parameters of the same back end (agents.safe_load.check_env_match); everything else may differ (transfer).
+same parameters of the same back end (bboxtune.agents.training.safe_load.check_env_match); everything else may differ (transfer).
 
 Episodes (agents/splits.py): --split (default test) and --seed choose them, the same seed always the same
 episodes. sim / video: --episodes N noise seeds of the split (seed 0: episodes 0 .. N-1, today's fixed test set;
@@ -17,26 +18,26 @@ split × --seeds-per-sequence noise seeds, "otb_tracker" every sequence × every
 output has no noise seed). --seed also seeds the baselines' training episodes, Optuna, the regressor and the
 bootstrap.
 
-Methods (agents.baselines, agents.adaptive): raw (the measurements themselves, no filter; a frame without a
+Methods (bboxtune.agents.policies.baselines, bboxtune.agents.policies.adaptive): raw (the measurements themselves, no filter; a frame without a
 measurement is scored as a missing estimate: a failure for success AUC / precision, left out of the RMSE),
 bytetrack_kf and sort_kf (the box filters ByteTrack / DeepSORT and SORT ship, published settings), rule
 (bytetrack_kf: stock ByteTrack), rule_est_sigma, rule_true_sigma (sim only; neither for bytetrack_kf), oracle
 (per-episode search maximising the env's reward with the truth), oracle_auc (maximising success AUC; oracle_rmse,
 minimising RMSE, when the reward is not RMSE), global, amortised, adaptive, the trained model (named by its
 algorithm, e.g. ppo) and its best-on-validation checkpoint (<algo>_best); with --gate also each final model gated
-(<algo>_gated, agents.gate: its action where a ridge regressor predicts that it beats the raw measurements by more
+(<algo>_gated, bboxtune.agents.evaluation.gate: its action where a ridge regressor predicts that it beats the raw measurements by more
 than a margin chosen on val episodes; elsewhere the measurements left alone, scored as raw; each fitted gate is
 written to gates/<name>.json, for smooth.py --gate). All methods see the same episodes (common random numbers);
 global and amortised are fitted on train-split episodes of the evaluation env, the gates on train- and val-split
 episodes of the run's own env (so a transfer evaluation stays one).
 
-Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by agents.retune_eval instead: raw, rule (every
+Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by bboxtune.agents.evaluation.retune_eval instead: raw, rule (every
 window), oneshot_oracle (the best single action for the track, with the truth), oneshot_learned (--oneshot-model
 RUN_DIR: a FilterTune-v0 run's action for the whole track, chosen seeing the whole track; left out without it) and
 oneshot_learned_online (the same model choosing from the warm-up window only), window_oracle (greedy per-window
 search with the truth, carrying the filter state), window_amortised (a learned sequential tuner without RL: a
 regressor from the window's observation to every candidate action's log RMSE on the coming window, fitted on
---train-episodes train episodes, agents.window_regressor; --fit-seeds K fits K of them), window_anchored (with
+--train-episodes train episodes, bboxtune.agents.evaluation.window_regressor; --fit-seeds K fits K of them), window_anchored (with
 --oneshot-model: the same regressor anchored at oneshot_learned's action, leaving it in a window only for a
 predicted gain above a margin chosen on --val-episodes val episodes or set with --anchor-margin), window_residual (with
 --oneshot-model: a second regressor whose candidates are oneshot_learned's action moved by small offsets, leaving it the
@@ -56,7 +57,7 @@ sequential tuner, in the env that --env-kwargs sets on EnvConfig's defaults: the
 regressors only, which need no RL run. --regime-informed (scenario=nonstationary, source sim) adds
 window_regime_informed[_s<k>] (window_amortised fitted and asked with the true regime schedule around each window
 after its observation) and regime_oracle (in each window of a true regime state the action best over that
-state's windows, with the truth) (agents.regime_informed): references that use the truth, for how much of the
+state's windows, with the truth) (bboxtune.agents.evaluation.regime_informed): references that use the truth, for how much of the
 one-shot → per-window gap knowing the regimes reaches.
 
 Writes to --out (default RUN_DIR/compare; a new or empty folder, nothing is overwritten): results.csv (one
@@ -67,10 +68,10 @@ add success AUC / precision against raw and rule, OTB sources per-attribute delt
 per tracker), gain_boxplot.png, otb_curves.png,
 trajectory.png; with several --model (runs of one algorithm and env, distinct seeds) every model is
 scored on the same episodes as <algo>_s<seed> / <algo>_best_s<seed> beside one set of baselines, and summary.md
-adds their IQM and mean across seeds with stratified bootstrap CIs (rliable's estimator, agents.seeds_report)
+adds their IQM and mean across seeds with stratified bootstrap CIs (rliable's estimator, bboxtune.agents.evaluation.seeds_report)
 and, for FilterTune-v0 runs, performance_profile.png. The run's models are loaded without unpickling anything and
-checked against its config.yml (agents.safe_load) and against the evaluation env before any baseline is fitted;
-an input that never varied in a model's training is held at its training value (agents.runs.hold_constant_features)
+checked against its config.yml (bboxtune.agents.training.safe_load) and against the evaluation env before any baseline is fitted;
+an input that never varied in a model's training is held at its training value (bboxtune.agents.training.runs.hold_constant_features)
 and summary.md names those inputs;
 an old run whose statistics are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can
 run code: only for runs you trust). Bad arguments or run files: one line naming them, exit status 2.
@@ -88,31 +89,54 @@ from typing import Any
 import gymnasium as gym
 import torch
 
-from agents.baselines import GridSearch, OraclePolicy
-from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, int_range, key_values,
-                        nonnegative_int, out_dir, positive_int, tracker_set)
-from agents.evaluate import (OTB_SOURCES, BaselineSettings, evaluate, evaluation_episodes, fit_baselines,
-                             standard_policies)
-from agents.gate import GATED, fit_gates
-from agents.gate_file import write_gate
-from agents.plots import gain_boxplot, otb_curves, performance_profile, trajectories
-from agents.report import by_method, summary_markdown, write_results_csv
-from agents.commands.compare_retune import (ONE_STEP_ENV, RETUNE_ENV, add_retune_arguments, check_regime_source,
-                                            check_retune_flags, compare_retune, load_oneshot, no_run_config)
-from agents.run_files import RunError
-from agents.runs import ENV_ERRORS, SB3Policy, check_free, describe_held_features, load_config, make_env
-from agents.safe_load import check_env_match
-from agents.seeds_report import profile_curves, seeds_section
-from agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
-from agents.window_regressor import WINDOW_AMORTISED, WINDOW_ANCHORED, WINDOW_RESIDUAL
-from envs.data.atomic_files import write_text_atomic
-from envs.episodes.config import EnvConfig
+from bboxtune.agents.cli import (
+    ArgumentParser,
+    HelpFormatter,
+    existing_dir,
+    int_range,
+    key_values,
+    nonnegative_int,
+    out_dir,
+    positive_int,
+    tracker_set,
+)
+from bboxtune.agents.commands.compare_retune import (
+    ONE_STEP_ENV,
+    RETUNE_ENV,
+    add_retune_arguments,
+    check_regime_source,
+    check_retune_flags,
+    compare_retune,
+    load_oneshot,
+    no_run_config,
+)
+from bboxtune.agents.evaluation.evaluate import (
+    OTB_SOURCES,
+    BaselineSettings,
+    evaluate,
+    evaluation_episodes,
+    fit_baselines,
+    standard_policies,
+)
+from bboxtune.agents.evaluation.gate import GATED, fit_gates
+from bboxtune.agents.evaluation.plots import gain_boxplot, otb_curves, performance_profile, trajectories
+from bboxtune.agents.evaluation.report import by_method, summary_markdown, write_results_csv
+from bboxtune.agents.evaluation.seeds_report import profile_curves, seeds_section
+from bboxtune.agents.evaluation.window_regressor import WINDOW_AMORTISED, WINDOW_ANCHORED, WINDOW_RESIDUAL
+from bboxtune.agents.policies.baselines import GridSearch, OraclePolicy
+from bboxtune.agents.policies.gate_file import write_gate
+from bboxtune.agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
+from bboxtune.agents.training.run_files import RunError
+from bboxtune.agents.training.runs import ENV_ERRORS, SB3Policy, check_free, describe_held_features, load_config, make_env
+from bboxtune.agents.training.safe_load import check_env_match
+from bboxtune.envs.data.atomic_files import write_text_atomic
+from bboxtune.envs.episodes.config import EnvConfig
 
 ENVS = (ONE_STEP_ENV, RETUNE_ENV)
 MIN_TRAIN_EPISODES = 11  # AmortisedPolicy's MLP holds out ceil(10 %) for early stopping and needs >= 2 of them
 DEFAULT_EPISODES = 500  # sim / video
 DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episodes
-GATES = "gates"  # --gate: the fitted gates, <name>.json (agents.gate_file), for smooth.py --gate
+GATES = "gates"  # --gate: the fitted gates, <name>.json (bboxtune.agents.policies.gate_file), for smooth.py --gate
 DEFAULT_VAL_EPISODES = 100  # sim / video val episodes the margins of window_anchored/_residual (--oneshot-model) and the gates (--gate) are chosen on
 
 
@@ -121,17 +145,17 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--model", type=existing_dir, nargs="+", default=None, metavar="RUN_DIR",
                    help="a scripts/train.py run directory; several (runs of one env and algorithm, e.g. training seeds): "
                         "each scored on the same episodes as <algo>_s<seed>, and summary.md adds IQM and mean across "
-                        "them with stratified bootstrap CIs (agents.seeds_report; FilterTune-v0 runs also "
+                        "them with stratified bootstrap CIs (bboxtune.agents.evaluation.seeds_report; FilterTune-v0 runs also "
                         f"performance_profile.png); needs --out. Required, except with --env {RETUNE_ENV} (then the "
                         "re-tuning baselines and window regressors only, in the env of --env-kwargs)")
     p.add_argument("--env", default=None, metavar="ID",
                    help=f"env id (default: the run's; one of {ENVS}, the run's kind); without --model: {RETUNE_ENV}")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
-                   help="override the run's env arguments (envs.episodes.config.EnvConfig fields, YAML values; KEY:VALUE also "
+                   help="override the run's env arguments (bboxtune.envs.episodes.config.EnvConfig fields, YAML values; KEY:VALUE also "
                         "accepted), e.g. source=otb track_length=100; the split is --split")
     p.add_argument("--trackers", type=tracker_set, default=None, metavar="SET",
                    help="source otb_tracker: score these trackers' output instead of the run's: 'test' (the held-out "
-                        "trackers of envs.data.otb.TRACKER_SPLIT), 'train' or comma-separated names")
+                        "trackers of bboxtune.envs.data.otb.TRACKER_SPLIT), 'train' or comma-separated names")
     p.add_argument("--split", default="test", choices=SPLITS, help="which split's episodes (and OTB sequences) are scored")
     p.add_argument("--episodes", type=int_range(1, SPLIT_SIZE), default=None,
                    help=f"sim / video: episodes scored (default {DEFAULT_EPISODES}); OTB sources enumerate theirs "
@@ -155,7 +179,7 @@ def build_parser() -> ArgumentParser:
                         "sim and video sources: OTB sources take every val sequence, once for the anchored margins and "
                         "--seeds-per-sequence times for the gates, and every tracker's output of it)")
     p.add_argument("--gate", action="store_true",
-                   help=f"{ONE_STEP_ENV} runs: also score each final model gated as <algo>{GATED}[_s<seed>] (agents.gate: "
+                   help=f"{ONE_STEP_ENV} runs: also score each final model gated as <algo>{GATED}[_s<seed>] (bboxtune.agents.evaluation.gate: "
                         "its action where a regressor predicts it beats the raw measurements by more than a margin, else "
                         "the measurements left alone; fitted on --train-episodes train and chosen on --val-episodes val "
                         "episodes of the run's own env)")
@@ -204,7 +228,7 @@ def env_flags(args: argparse.Namespace) -> str:
 
 
 def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env) -> list[EpisodeSpec]:
-    """The episodes to score (agents.evaluate.evaluation_episodes), after checking the flags that choose them."""
+    """The episodes to score (bboxtune.agents.evaluation.evaluate.evaluation_episodes), after checking the flags that choose them."""
     source = env.unwrapped.config.source
     k = args.seeds_per_sequence
     if source in OTB_SOURCES and args.episodes is not None:
@@ -224,7 +248,7 @@ def load_learned(run: Path, cfg: dict[str, Any], env: gym.Env, trust_pickle: boo
     learned = [SB3Policy.load(run, "final", trust_pickle=trust_pickle)]
     if (run / "best_model.zip").exists():
         learned.append(SB3Policy.load(run, "best", trust_pickle=trust_pickle))
-    for policy, prefix in zip(learned, ("", "best_")):
+    for policy, prefix in zip(learned, ("", "best_"), strict=False):
         policy.name = f"{cfg['algo']}{'_best' if prefix else ''}{suffix}"
         check_env_match(run / f"{prefix}model.zip", policy.model, cfg, env)
     return learned
@@ -269,7 +293,7 @@ def describe_episodes(args: argparse.Namespace, source: str, episodes: list[Epis
         return f"{n} = {sequences} {args.split}-split sequences {per}; noise seeds chosen with --seed {args.seed}"
     if args.split == "test" and args.seed == 0:
         return f"{n} (test split: noise seeds 10⁹ + i, i < {n})"
-    return f"{n} ({args.split} split, chosen with --seed {args.seed}: agents.splits.split_seeds)"
+    return f"{n} ({args.split} split, chosen with --seed {args.seed}: bboxtune.agents.splits.split_seeds)"
 
 
 def run(argv: list[str] | None = None) -> Path:

@@ -1,7 +1,7 @@
-"""The FilterRetune-v0 part of ``scripts/compare.py``: the re-tuning methods (agents.retune_eval), the per-window
-regressors it fits (agents.window_regressor, ``--fit-seeds``; anchored at the one-shot model with its margin chosen on
+"""The FilterRetune-v0 part of ``scripts/compare.py``: the re-tuning methods (bboxtune.agents.evaluation.retune_eval), the per-window
+regressors it fits (bboxtune.agents.evaluation.window_regressor, ``--fit-seeds``; anchored at the one-shot model with its margin chosen on
 val episodes, ``--val-episodes`` / ``--anchor-margin``), the one-shot model it loads (``--oneshot-model``), and
-the summary with the one-shot → per-window gap (agents.report_retune), and the flags only these comparisons take
+the summary with the one-shot → per-window gap (bboxtune.agents.evaluation.report_retune), and the flags only these comparisons take
 (:func:`add_retune_arguments`, :func:`check_retune_flags`, :func:`check_regime_source`). compare.py parses the arguments."""
 
 from __future__ import annotations
@@ -16,26 +16,47 @@ from typing import Any, NoReturn
 import gymnasium as gym
 import numpy as np
 
-from agents.baselines import GridSearch, RulePolicy
-from agents.cli import existing_dir, float_range, positive_int
-from agents.evaluate import val_episodes
-from agents.plots import gain_boxplot, parameter_schedule
-from agents.report import by_method, summary_markdown, write_results_csv
-from agents.report_retune import retune_tables
-from agents.regime_informed import (REGIME_ORACLE, WINDOW_REGIME_INFORMED, RegimeInformedPolicy, RegimeObservation,
-                                    RegimeOracle)
-from agents.retune_eval import (ONESHOT_LEARNED, ONESHOT_ORACLE, WINDOW_ORACLE, OneShotLearned, OneShotOracle, Sequential,
-                                evaluate_retune, window_oracle)
-from agents.run_files import RunError
-from agents.runs import ENV_ERRORS, SB3Policy, describe_held_features, load_config, make_env
-from agents.safe_load import check_env_match
-from agents.seeds_report import seeds_section
-from agents.splits import EpisodeSpec, train_seeds
-from agents.window_regressor import (WINDOW_AMORTISED, WINDOW_ANCHORED, WINDOW_RESIDUAL, AnchoredWindowPolicy,
-                                     WindowRegressorPolicy, WindowRegressorSettings, fit_regressor, select_margin)
-from envs import RETUNE_ID, TUNE_ID
-from envs.data.atomic_files import write_text_atomic
-from envs.episodes.config import EnvConfig
+from bboxtune.agents.cli import existing_dir, float_range, positive_int
+from bboxtune.agents.evaluation.evaluate import val_episodes
+from bboxtune.agents.evaluation.plots import gain_boxplot, parameter_schedule
+from bboxtune.agents.evaluation.regime_informed import (
+    REGIME_ORACLE,
+    WINDOW_REGIME_INFORMED,
+    RegimeInformedPolicy,
+    RegimeObservation,
+    RegimeOracle,
+)
+from bboxtune.agents.evaluation.report import by_method, summary_markdown, write_results_csv
+from bboxtune.agents.evaluation.report_retune import retune_tables
+from bboxtune.agents.evaluation.retune_eval import (
+    ONESHOT_LEARNED,
+    ONESHOT_ORACLE,
+    WINDOW_ORACLE,
+    OneShotLearned,
+    OneShotOracle,
+    Sequential,
+    evaluate_retune,
+    window_oracle,
+)
+from bboxtune.agents.evaluation.seeds_report import seeds_section
+from bboxtune.agents.evaluation.window_regressor import (
+    WINDOW_AMORTISED,
+    WINDOW_ANCHORED,
+    WINDOW_RESIDUAL,
+    AnchoredWindowPolicy,
+    WindowRegressorPolicy,
+    WindowRegressorSettings,
+    fit_regressor,
+    select_margin,
+)
+from bboxtune.agents.policies.baselines import GridSearch, RulePolicy
+from bboxtune.agents.splits import EpisodeSpec, train_seeds
+from bboxtune.agents.training.run_files import RunError
+from bboxtune.agents.training.runs import ENV_ERRORS, SB3Policy, describe_held_features, load_config, make_env
+from bboxtune.agents.training.safe_load import check_env_match
+from bboxtune.envs import RETUNE_ID, TUNE_ID
+from bboxtune.envs.data.atomic_files import write_text_atomic
+from bboxtune.envs.episodes.config import EnvConfig
 
 ONE_STEP_ENV, RETUNE_ENV = TUNE_ID, RETUNE_ID
 
@@ -54,7 +75,7 @@ def add_retune_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--regime-informed", action="store_true",
                    help=f"{RETUNE_ENV} with scenario=nonstationary (source sim): also fit {WINDOW_AMORTISED} told the true "
                         f"regime schedule, scored as {WINDOW_REGIME_INFORMED}[_s<k>], and {REGIME_ORACLE}, the best action per true "
-                        "regime state chosen with the truth (agents.regime_informed: references that use the truth, for "
+                        "regime state chosen with the truth (bboxtune.agents.evaluation.regime_informed: references that use the truth, for "
                         "the share of the one-shot → per-window gap that knowing the regimes reaches)")
 
 
@@ -117,9 +138,9 @@ class Anchors:
 
 def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace, anchors: Anchors | None
                           ) -> tuple[list[WindowRegressorPolicy], list[AnchoredWindowPolicy], dict[str, dict[float, float]]]:
-    """``--fit-seeds`` window regressors (agents.window_regressor), each on its own ``--train-episodes`` train
+    """``--fit-seeds`` window regressors (bboxtune.agents.evaluation.window_regressor), each on its own ``--train-episodes`` train
     episodes, as ``window_amortised`` policies (with ``--regime-informed`` each followed by the same fit told the true
-    schedule, agents.regime_informed); with ``anchors`` also as ``window_anchored`` policies and, from a
+    schedule, bboxtune.agents.evaluation.regime_informed); with ``anchors`` also as ``window_anchored`` policies and, from a
     second regressor on the same episodes, ``window_residual`` policies (both anchored on the test split), each with
     the margin ``--anchor-margin`` or the one chosen on the val episodes (each margin's mean log-ratio on them: the
     third item)."""
@@ -183,7 +204,7 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                    episodes_described: tuple[list[EpisodeSpec], str],
                    models: tuple[list[SB3Policy], dict[str, list[str]], str], oneshot: OneShotLearned | None, out: Path,
                    command: str) -> Path:
-    """The FilterRetune-v0 comparison (agents.retune_eval) of compare.py's parsed ``args``: the test env, the train
+    """The FilterRetune-v0 comparison (bboxtune.agents.evaluation.retune_eval) of compare.py's parsed ``args``: the test env, the train
     env (the regressors' episodes) and their kwargs, the test episodes with their description for summary.md, the
     run(s)' models with their groups across training seeds and description, and ``--oneshot-model``; writes
     results.csv, summary.md and the figures in ``out``."""
@@ -221,17 +242,17 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                        {p.name: env.unwrapped.observation_names for p in learned}),
                    WINDOW_AMORTISED: f"{', '.join(p.name for p in regressors if not isinstance(p, RegimeInformedPolicy))}: "
                                      f"per-window regressor(s) "
-                                     f"(agents.window_regressor, {len(regressors[0].candidates)} candidate actions) fitted "
+                                     f"(bboxtune.agents.evaluation.window_regressor, {len(regressors[0].candidates)} candidate actions) fitted "
                                      f"on {args.train_episodes} train-split episodes each (seeds {args.seed} … "
                                      f"{args.seed + args.fit_seeds - 1})"
                                      + (f"; its candidates include the `oneshot_learned` action (the anchor of "
                                         f"{WINDOW_ANCHORED})" if anchors else ""),
                    **({WINDOW_REGIME_INFORMED: "a reference that uses the truth: the same fit on the same episodes "
                                                "with the true regime schedule around each window after the observation "
-                                               "(agents.regime_informed, --regime-informed)",
+                                               "(bboxtune.agents.evaluation.regime_informed, --regime-informed)",
                        REGIME_ORACLE: "in every window of a true regime state (noise regime × manoeuvre × gap, the "
                                       "window's majority) the action with the lowest squared error over that state's "
-                                      "windows, with the truth, searched as the oracles (agents.regime_informed)"}
+                                      "windows, with the truth, searched as the oracles (bboxtune.agents.evaluation.regime_informed)"}
                       if args.regime_informed else {}),
                    **({WINDOW_ANCHORED: anchored_settings(anchored, val_means, anchors, around_anchor=False),
                        WINDOW_RESIDUAL: anchored_settings(anchored, val_means, anchors, around_anchor=True)} if anchors else {}),

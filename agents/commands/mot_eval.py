@@ -3,15 +3,15 @@
     python scripts/mot_eval.py --mot-root ../shared/data/mot15 --split test --out runs/mot_eval
     python scripts/mot_eval.py --split test --model runs/ppo_kf_cmn_mot_s0 --pretrained otb_kf_cmn --out runs/mot_eval
 
-Every method runs causally on each identity's detection stream (:mod:`envs.episodes.mot_source`: from its first
-to its last matched detection) and is scored by :mod:`agents.mot_eval`: mean IoU on the detected frames (from
+Every method runs causally on each identity's detection stream (:mod:`bboxtune.envs.episodes.mot_source`: from its first
+to its last matched detection) and is scored by :mod:`bboxtune.agents.evaluation.mot_eval`: mean IoU on the detected frames (from
 the fifth after the first detection on), IoU inside the detection gaps (pooled over frames; a method without an
 estimate there scores 0), log(RMSE_raw / RMSE) on the detected frames; paired differences to the raw detections
 and to ByteTrack's Kalman filter, 95 % intervals resampling identities. Methods: ``raw``; the filters practitioners
 ship, ``bytetrack_kf`` (ByteTrack / DeepSORT, stock weights) and ``sort_kf``; the fixed N_opt rule on ``kf``,
 ``kf_cmn`` and ``ufir_cmn``; ``bytetrack_oracle`` (ByteTrack's two std weights chosen per identity with the
 ground truth from a 6 × 5 grid: the headroom of tuning them, not a method); each ``--model`` run directory and
-``--pretrained`` tuner (:class:`agents.tune.Tuner`, which sees the detections only).
+``--pretrained`` tuner (:class:`bboxtune.agents.smoothing.tuner.Tuner`, which sees the detections only).
 
 Writes ``summary.md`` (the table and the command), ``per_identity.csv`` (every method's scores per identity) and
 ``command.txt`` into ``--out`` (created; an existing folder must not hold these files), each atomically.
@@ -27,16 +27,16 @@ from pathlib import Path
 
 import numpy as np
 
-from agents import mot_eval
-from agents.cli import ArgumentParser, command_line, existing_dir, out_dir, outputs_taken
-from agents.tune import Tuner, load_pretrained
-from agents.video_tables import csv_text
-from envs.data import mot
-from envs.data.atomic_files import write_text_atomic
-from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
-from envs.episodes.config import SPLITS, EnvConfig
-from envs.episodes.episode import Episode
-from envs.episodes.mot_source import identity_episode, identity_name
+from bboxtune.agents.cli import ArgumentParser, command_line, existing_dir, out_dir, outputs_taken
+from bboxtune.agents.evaluation import mot_eval
+from bboxtune.agents.evaluation.video_tables import csv_text
+from bboxtune.agents.smoothing.tuner import Tuner, load_pretrained
+from bboxtune.envs.data import mot
+from bboxtune.envs.data.atomic_files import write_text_atomic
+from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from bboxtune.envs.episodes.config import SPLITS, EnvConfig
+from bboxtune.envs.episodes.episode import Episode
+from bboxtune.envs.episodes.mot_source import identity_episode, identity_name
 
 OUTPUTS = ("summary.md", "per_identity.csv", "command.txt")
 REFERENCES = ("raw", "bytetrack_kf")
@@ -60,7 +60,7 @@ def bytetrack_oracle(episodes: list[Episode]) -> list[np.ndarray]:
     for p, v in itertools.product(ORACLE_POSITION, ORACLE_VELOCITY):
         params = {"std_weight_position": STOCK["std_weight_position"] * p,
                   "std_weight_velocity": STOCK["std_weight_velocity"] * v}
-        for i, (ep, est) in enumerate(zip(episodes, mot_eval.backend_method("bytetrack_kf", params)(episodes))):
+        for i, (ep, est) in enumerate(zip(episodes, mot_eval.backend_method("bytetrack_kf", params)(episodes), strict=False)):
             sets = mot_eval.frame_sets(ep)
             scored = sets.detected | sets.gaps
             value = float(mot_eval.box_iou(est, ep.truth)[scored].mean()) if scored.any() else 0.0
@@ -86,7 +86,7 @@ def methods(models: list[Path], pretrained: list[str]) -> dict[str, mot_eval.Met
 
 
 def summary_text(rows: list[dict[str, str]], split: str, n: int, sequences: list[str], command: str) -> str:
-    """summary.md: the table of :func:`agents.mot_eval.paired_rows` and what it was measured on."""
+    """summary.md: the table of :func:`bboxtune.agents.evaluation.mot_eval.paired_rows` and what it was measured on."""
     columns = list(rows[0])
     lines = [f"# Filters on MOT15 detection streams: split {split!r}", "",
              f"{n} identities of {', '.join(sequences)}; 95 % intervals resample identities "
@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--model", action="append", default=[], type=existing_dir, metavar="RUN_DIR",
                         help="a scripts/train.py run directory to score (repeatable)")
     parser.add_argument("--pretrained", action="append", default=[], metavar="NAME",
-                        help="a pretrained tuner to score (repeatable; agents.pretrained)")
+                        help="a pretrained tuner to score (repeatable; bboxtune.agents.smoothing.pretrained)")
     parser.add_argument("--out", required=True, type=out_dir, help="output folder (created)")
     args = parser.parse_args(argv)
     if outputs_taken(args.out, OUTPUTS):

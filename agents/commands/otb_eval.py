@@ -2,12 +2,12 @@
 
     python scripts/otb_eval.py --otb-root ../shared/data/otb [--tracker NAME ...] [--json]
 
-Reads ``--otb-root`` (else ``$OTB_ROOT``) in any layout :class:`envs.data.otb.OTBDataset` accepts, with tracker
+Reads ``--otb-root`` (else ``$OTB_ROOT``) in any layout :class:`bboxtune.envs.data.otb.OTBDataset` accepts, with tracker
 outputs under ``<root>/trackers/<Tracker>/<Seq>.txt`` (or ``--trackers-root``). Conventions are those of
-``envs.data.metrics`` (xywh, frame 1 counts, missing ground truth excluded, missing predictions are failures).
+``bboxtune.envs.data.metrics`` (xywh, frame 1 counts, missing ground truth excluded, missing predictions are failures).
 ``--json`` prints only ``{tracker: {"success_auc": float, "precision20": float, "n_sequences": int}}``.
 A malformed file ends the run with exit status 2 and one line naming the file and line (reading is linear in
-the file sizes; limits in :mod:`envs.data.otb_io`); so does a bad command line.
+the file sizes; limits in :mod:`bboxtune.envs.data.otb_io`); so does a bad command line.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import json
 import logging
 import sys
 
-from agents.cli import ArgumentParser
-from envs.data.metrics import score_sequences
-from envs.data.otb import OTBDataset
+from bboxtune.agents.cli import ArgumentParser
+from bboxtune.envs.data.metrics import score_sequences
+from bboxtune.envs.data.otb import OTBDataset
 
 
 def evaluate(dataset: OTBDataset, trackers: list[str]) -> dict[str, dict[str, float | int]]:

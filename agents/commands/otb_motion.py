@@ -2,10 +2,10 @@
 
     python scripts/otb_motion.py --otb-root ../shared/data/otb --out docs [--tracks 300] [--seed 0]
 
-Writes ``otb_motion.json`` (the fitted :class:`envs.data.sim_motion.OTBMotion` parameters and every statistic) and
+Writes ``otb_motion.json`` (the fitted :class:`bboxtune.envs.data.sim_motion.OTBMotion` parameters and every statistic) and
 ``otb_motion.md`` (tables) to ``--out``, atomically. Conventions: 30 frames/s (OTB has no time stamps);
 centre (cx, cy) increments divided by the box scale s = √(w h) of the earlier frame (box scales per frame,
-÷ τ: per second); x and y pooled; log w and log h pooled. Only the train split (``envs.data.otb.split``) is fitted;
+÷ τ: per second); x and y pooled; log w and log h pooled. Only the train split (``bboxtune.envs.data.otb.split``) is fitted;
 val and test are reported. Simulated tracks are scored like the ground truth after rounding the true boxes
 to integers (OTB boxes are integers), at τ = 1/30 s and 500 frames.
 """
@@ -19,11 +19,11 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import welch
 
-from agents.cli import ArgumentParser, existing_dir, int_range, nonnegative_int, out_dir
-from envs.data.atomic_files import write_text_atomic
-from envs.data.otb import OTBDataset, split
-from envs.data.sim_motion import OTBMotion
-from envs.data.simulate import ScenarioRanges, simulate_each
+from bboxtune.agents.cli import ArgumentParser, existing_dir, int_range, nonnegative_int, out_dir
+from bboxtune.envs.data.atomic_files import write_text_atomic
+from bboxtune.envs.data.otb import OTBDataset, split
+from bboxtune.envs.data.sim_motion import OTBMotion
+from bboxtune.envs.data.simulate import ScenarioRanges, simulate_each
 
 TAU = 1 / 30  # s, OTB frame interval
 LAGS = (1, 2, 3, 5, 10, 20, 40)  # frames, autocorrelation table

@@ -1,8 +1,8 @@
 """Reproduce the papers' experiments and write our numbers beside theirs.
 
     python scripts/reproduce.py --out DIR [--otb-root DIR] [--mc N] [--seed S] [--quick]
-    python scripts/reproduce_seed000.py --out DIR [--mc N] [--seed S] [--quick]          # one part alone;
-    python scripts/reproduce_seed004.py ...  /  python scripts/reproduce_otb.py ... [--otb-root DIR]  # the others
+    python scripts/reproduce_shmaliy_cmn.py --out DIR [--mc N] [--seed S] [--quick]          # one part alone;
+    python scripts/reproduce_mo_fir.py ...  /  python scripts/reproduce_otb.py ... [--otb-root DIR]  # the others
 
 Writes ``DIR/reproduction.md`` (markdown tables: ours vs the paper, one verdict per claim) and PNG figures:
 
@@ -35,13 +35,13 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.cli import ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int, out_dir
-from agents.reproduce import mo_fir, otb, shmaliy_cmn
-from agents.reproduce.common import Section, Settings, make_settings, save_figure
-from envs.data.atomic_files import atomic_write_file
-from envs.data.otb import OTB_ROOT_ENV, OTBDataset
+from bboxtune.agents.cli import ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int, out_dir
+from bboxtune.agents.reproduce import mo_fir, otb, shmaliy_cmn
+from bboxtune.agents.reproduce.common import Section, Settings, make_settings, save_figure
+from bboxtune.envs.data.atomic_files import atomic_write_file
+from bboxtune.envs.data.otb import OTB_ROOT_ENV, OTBDataset
 
-PARTS = {"seed000": shmaliy_cmn, "seed004": mo_fir, "otb": otb}  # part → module; reproduce_<part>.py runs it alone
+PARTS = {"shmaliy_cmn": shmaliy_cmn, "mo_fir": mo_fir, "otb": otb}  # part → module; reproduce_<part>.py runs it alone
 Experiments = list[tuple[str, Callable[[], Section]]]  # (progress name, experiment returning its Section)
 
 
@@ -83,8 +83,8 @@ def open_otb(parser: argparse.ArgumentParser, root: str | None, required: bool) 
     return dataset
 
 
-def run_seed000(settings: Settings) -> Experiments:
-    """Seed 000 Fig. 2 and the N_opt(ψ) search, each returning its Section with figures."""
+def run_shmaliy_cmn(settings: Settings) -> Experiments:
+    """[Shmaliy-CMN] Fig. 2 and the N_opt(ψ) search, each returning its Section with figures."""
 
     def fig2() -> Section:
         res = shmaliy_cmn.run_fig2(settings)
@@ -97,8 +97,8 @@ def run_seed000(settings: Settings) -> Experiments:
     return [("[Shmaliy-CMN] Fig. 2 (RMSE vs ψ)", fig2), ("[Shmaliy-CMN] N_opt(ψ) search", nopt)]
 
 
-def run_seed004(settings: Settings) -> Experiments:
-    """Seed 004 Table I."""
+def run_mo_fir(settings: Settings) -> Experiments:
+    """[Mo-FIR] Table I."""
 
     def table1() -> Section:
         res = mo_fir.run_table1(settings)
@@ -168,10 +168,10 @@ def main(argv: list[str] | None = None, part: str | None = None) -> int:
     print(f"reproduce: seed {settings.seed}, {settings.mc} Monte Carlo runs, "
           f"{'quick' if settings.quick else 'full'} grids → {out}")
     experiments: Experiments = []
-    if part in (None, "seed000"):
-        experiments += run_seed000(settings)
-    if part in (None, "seed004"):
-        experiments += run_seed004(settings)
+    if part in (None, "shmaliy_cmn"):
+        experiments += run_shmaliy_cmn(settings)
+    if part in (None, "mo_fir"):
+        experiments += run_mo_fir(settings)
     skipped = None
     if args.dataset is not None:
         experiments += run_otb(settings, args.dataset)

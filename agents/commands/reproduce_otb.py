@@ -1,9 +1,9 @@
-"""``reproduce_otb.py``: the OTB part (Car4, Suv) of :mod:`agents.commands.reproduce` alone
-(experiments: :mod:`agents.reproduce.otb`)."""
+"""``reproduce_otb.py``: the OTB part (Car4, Suv) of :mod:`bboxtune.agents.commands.reproduce` alone
+(experiments: :mod:`bboxtune.agents.reproduce.otb`)."""
 
 from __future__ import annotations
 
-from agents.commands import reproduce
+from bboxtune.agents.commands import reproduce
 
 
 def main(argv: list[str] | None = None) -> int:

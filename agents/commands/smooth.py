@@ -10,21 +10,23 @@ by the OTB readers (a malformed file stops the run with file:line, exit status 2
 --model RUN_DIR (a scripts/train.py run of bboxtune/FilterTune-v0) or --pretrained NAME (agents/pretrained);
 neither: the pretrained tracker-output tuner otb_tracker_kf_cmn (gated: its gate leaves every sequence as
 read; --no-gate smooths them). No tuner: --filter bytetrack_kf / sort_kf, the box Kalman filter ByteTrack /
-DeepSORT or SORT ship, with its published settings (agents.stock_filter; for either format). --tau: the frame interval in s (default: the tuner's otb_tau, 1/30 s). Every
+DeepSORT or SORT ship, with its published settings (bboxtune.agents.smoothing.stock_filter; for either format). --tau: the
+frame interval in s (default: the tuner's otb_tau, 1/30 s). Every
 sequence must have at least 8 frames, 2 of them with a box.
 
 --out (absent or empty; it appears complete or not at all) receives one <Sequence>.txt per input file, same
 name, x,y,w,h with 3 decimals per line, one line per input line: the back end's smoothed boxes. Frames
 without a box in the input are predicted from the others; frames before the first box, and any frame whose
 smoothed w or h is <= 0, are written 0,0,0,0 (counted in params.csv). A gated tuner (--gate FILE, a gate that
-compare.py --gate fitted for this tuner, or a gate.json in the tuner's folder unless --no-gate; agents.gate) writes
+compare.py --gate fitted for this tuner, or a gate.json in the tuner's folder unless --no-gate; bboxtune.agents.evaluation.gate) writes
 a sequence where its gate stays closed as read instead. params.csv: sequence, n_frames, n_missing_in,
 n_missing_out, left_alone (1: written as read) and the chosen parameters (e.g. psi, horizon; exact values; what the
-model sets, also where the sequence is left alone). With --otb-root the sequences found there are scored, raw and smoothed, by scripts/otb_eval.py's scorer (success AUC, precision at
+model sets, also where the sequence is left alone). With --otb-root the sequences found there are scored, raw and
+smoothed, by scripts/otb_eval.py's scorer (success AUC, precision at
 20 px, mean over sequences; printed and written to scores.csv).
 
 --format mot (default otb: all of the above) smooths MOT Challenge tracks one identity at a time
-(agents/mot_smooth.py):
+(agents/smoothing/mot_smooth.py):
 
     python scripts/smooth.py --format mot --results trackers/MyTracker/data --out DIR --fps 30
     python scripts/smooth.py --format mot --results $MOT_ROOT/KITTI-13 --out DIR --pretrained otb_kf_cmn
@@ -57,17 +59,23 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from agents import mot_smooth, pretrained
-from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, existing_dir, existing_file, float_range,
-                        out_dir)
-from agents.commands.otb_eval import evaluate
-from agents.stock_filter import STOCK_FILTERS, StockFilter
-from agents.tune import DEFAULT_PRETRAINED, MIN_FRAMES, TAU_RANGE, Tuner, check_boxes, load_pretrained
-from agents.video_tables import csv_text, folder_in_use, publish_folder
-from envs.data.mot import MOT_ROOT_ENV
-from envs.data.otb import OTBDataset
-from envs.data.otb_io import read_boxes
-
+from bboxtune.agents.cli import (
+    ArgumentParser,
+    HelpFormatter,
+    argument_errors,
+    existing_dir,
+    existing_file,
+    float_range,
+    out_dir,
+)
+from bboxtune.agents.commands.otb_eval import evaluate
+from bboxtune.agents.evaluation.video_tables import csv_text, folder_in_use, publish_folder
+from bboxtune.agents.smoothing import mot_smooth, pretrained
+from bboxtune.agents.smoothing.stock_filter import STOCK_FILTERS, StockFilter
+from bboxtune.agents.smoothing.tuner import DEFAULT_PRETRAINED, MIN_FRAMES, TAU_RANGE, Tuner, check_boxes, load_pretrained
+from bboxtune.envs.data.mot import MOT_ROOT_ENV
+from bboxtune.envs.data.otb import OTBDataset
+from bboxtune.envs.data.otb_io import read_boxes
 
 FORMAT_ONLY = {"--tau": "otb", "--otb-root": "otb", "--fps": "mot", "--mot-root": "mot"}
 
@@ -131,7 +139,7 @@ def box_text(boxes: np.ndarray) -> tuple[str, int]:
     """OTB box text of ``boxes`` (T, 4) xywh, 3 decimals, ``0,0,0,0`` where a box is missing or has w or h <= 0
     (it would not read back as a box); and how many such lines."""
     written = np.isfinite(boxes).all(axis=1) & (np.round(boxes[:, 2:], 3) > 0).all(axis=1)
-    lines = [",".join(f"{v:.3f}" for v in box) if ok else "0,0,0,0" for box, ok in zip(boxes, written)]
+    lines = [",".join(f"{v:.3f}" for v in box) if ok else "0,0,0,0" for box, ok in zip(boxes, written, strict=False)]
     return "\n".join(lines) + "\n", int((~written).sum())
 
 
@@ -166,7 +174,7 @@ def load_tuner(parser: ArgumentParser, args: argparse.Namespace) -> Tuner | Stoc
 
 
 def smooth_mot(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, str]:
-    """--format mot: the output files (agents.mot_smooth; a summary is printed)."""
+    """--format mot: the output files (bboxtune.agents.smoothing.mot_smooth; a summary is printed)."""
     with argument_errors(parser, "--results"):
         inputs = mot_smooth.read_inputs(args.results)
     with argument_errors(parser, "--fps"):

@@ -6,7 +6,7 @@
     python scripts/sweep.py --out runs/sweep --address auto ...  # the same sweep on a running Ray cluster
 
 The grid is the product of --algos × --backends × --sources × the --hyperparams values × --seeds; a trial runs
-scripts/train.py and then scripts/compare.py --split val on its run (agents.sweep: the folder layout, resuming,
+scripts/train.py and then scripts/compare.py --split val on its run (bboxtune.agents.training.sweep: the folder layout, resuming,
 the aggregate). Local by default (ray.init() with this machine's CPU count, or --cpus); --address joins a
 cluster. --out must be new or empty (or, with --resume, the sweep to continue). Writes OUT/trials/<trial>/
 (run/, compare/, trial.csv) and OUT/aggregate.csv / aggregate.md (per setting: seeds, mean / min / max of the val
@@ -18,13 +18,21 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from agents.algos import ALGOS
-from agents.cli import ArgumentParser, HelpFormatter, float_range, key_values, nonnegative_int, out_dir, positive_int
-from agents.run_files import RunError
-from agents.runs import check_free
-from agents.sweep import SweepSpec, run_sweep
-from envs.episodes.actions import BACKENDS
-from envs.episodes.config import SOURCES
+from bboxtune.agents.cli import (
+    ArgumentParser,
+    HelpFormatter,
+    float_range,
+    key_values,
+    nonnegative_int,
+    out_dir,
+    positive_int,
+)
+from bboxtune.agents.training.algos import ALGOS
+from bboxtune.agents.training.run_files import RunError
+from bboxtune.agents.training.runs import check_free
+from bboxtune.agents.training.sweep import SweepSpec, run_sweep
+from bboxtune.envs.episodes.actions import BACKENDS
+from bboxtune.envs.episodes.config import SOURCES
 
 SMOKE = SweepSpec(seeds=(0, 1), timesteps=128,
                   train_args=("--hyperparams", "n_envs:8", "n_steps:8", "batch_size:32", "--env-kwargs", "track_length=100",

@@ -6,12 +6,13 @@
     python scripts/track_video.py --synthetic --detector orb --tuned runs/video_table/tuned/orb-kf.json
 
 Filter parameters: the fixed rule (nominal σ = the detector's calibrated relative σ × the measured box scale,
-N = N_opt; :mod:`envs.episodes.video_source`) or, with ``--tuned MODEL`` (a ``tuned.json`` or a ``train.py`` run
+N = N_opt; :mod:`bboxtune.envs.episodes.video_source`) or, with ``--tuned MODEL`` (a ``tuned.json`` or a ``train.py`` run
 directory), the tuner's choice; ``--compensate`` estimates the camera motion from the frames and compensates
-it (:mod:`envs.video.camera`; UKF: [Raj-UKF] eq. 17, other back ends: camera-velocity input, eq. 18).
+it (:mod:`bboxtune.envs.video.camera`; UKF: [Raj-UKF] eq. 17, other back ends: camera-velocity input, eq. 18).
 
 Writes to ``--out`` (a new or empty folder, nothing is overwritten; default ``runs/track_video/<name>`` with
-name ``synthetic-<seed>``, the video's stem or the sequence): ``frames.csv`` (per frame: raw and filtered x, y, w, h [and ground truth, IoUs]),
+name ``synthetic-<seed>``, the video's stem or the sequence): ``frames.csv`` (per frame: raw and filtered x, y, w, h
+[and ground truth, IoUs]),
 ``summary.json`` (``raw_success_auc``, ``filtered_success_auc``, precision@20 px and the (cx, cy, w, h) RMSE
 over the frames with a detection when ground truth is known, ``n_frames``, ``n_missing``, parameters), and
 ``video.mp4`` (truth green, detection red, filtered blue; ``strip.png`` of 8 frames instead if no MP4 codec is
@@ -19,7 +20,7 @@ available). All files are written atomically.
 Box coordinates: 0-based for ``--synthetic`` / ``--video``; 1-based OTB coordinates for ``--frames``
 (``--init`` is read in the same convention).
 Arguments are checked before any frame is read: a bad one gives one line naming it (exit status 2). A
-``train.py`` run directory given to ``--tuned`` is loaded without unpickling anything (``agents.safe_load``);
+``train.py`` run directory given to ``--tuned`` is loaded without unpickling anything (``bboxtune.agents.training.safe_load``);
 an old run whose statistics are only in ``vecnormalize.pkl`` needs ``--trust-pickle`` (pickles can run code:
 only for runs you trust).
 """
@@ -34,24 +35,31 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-import filters
-from agents.cli import (ArgumentParser, box_xywh, existing_dir, existing_file, int_range, nonnegative_int,
-                        out_dir)
-from agents.run_files import RunError
-from agents.runs import check_free
-from agents.video_tables import write_csv, write_json
-from agents.video_tuning import load_tuner
-from envs.data import metrics
-from envs.data.atomic_files import atomic_write
-from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
-from envs.episodes.actions import ACCEPTS, BACKENDS
-from envs.episodes.config import EnvConfig
-from envs.episodes.video_source import VideoSettings, VideoSource
-from envs.video.camera import frame_shift, run_compensated
-from envs.video.detector import to_gray
-from envs.video.detectors import DETECTORS, make_detector
-from envs.video.frames import otb_frames, video_file
-from envs.video.synthetic import VideoRanges, synthetic_video
+from bboxtune import filters
+from bboxtune.agents.cli import (
+    ArgumentParser,
+    box_xywh,
+    existing_dir,
+    existing_file,
+    int_range,
+    nonnegative_int,
+    out_dir,
+)
+from bboxtune.agents.evaluation.video_tables import write_csv, write_json
+from bboxtune.agents.smoothing.video_tuning import load_tuner
+from bboxtune.agents.training.run_files import RunError
+from bboxtune.agents.training.runs import check_free
+from bboxtune.envs.data import metrics
+from bboxtune.envs.data.atomic_files import atomic_write
+from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from bboxtune.envs.episodes.actions import ACCEPTS, BACKENDS
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.video_source import VideoSettings, VideoSource
+from bboxtune.envs.video.camera import frame_shift, run_compensated
+from bboxtune.envs.video.detector import to_gray
+from bboxtune.envs.video.detectors import DETECTORS, make_detector
+from bboxtune.envs.video.frames import otb_frames, video_file
+from bboxtune.envs.video.synthetic import VideoRanges, synthetic_video
 
 _GREEN, _RED, _BLUE = (40, 170, 40), (40, 40, 220), (230, 80, 40)  # BGR
 

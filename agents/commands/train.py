@@ -5,10 +5,10 @@
     python scripts/train.py --resume runs/ppo_ufir_cmn_sim_s0   # continue a killed run
     python scripts/train.py --resume runs/ppo_ufir_cmn_sim_s0 --timesteps 200000   # train it on to 200k in all
 
-Episodes: training draws the train split, the EvalCallback scores the val split (``agents.splits``: disjoint
+Episodes: training draws the train split, the EvalCallback scores the val split (``bboxtune.agents.splits``: disjoint
 noise-seed sets; OTB sources also use the env's sequence splits). Observations are normalised by
 VecNormalize (obs only; the rewards, e.g. log(RMSE_rule/RMSE), are already scale-free). The run directory layout is in
-``agents.runs``. Same seed → same result on the same machine (uninterrupted runs); a resumed run continues from
+``bboxtune.agents.training.runs``. Same seed → same result on the same machine (uninterrupted runs); a resumed run continues from
 its last checkpoint with reseeded envs (seed + timesteps done), so it does not replay earlier episodes.
 
 Before anything is written or a worker process starts, the whole configuration is checked in this process: the
@@ -43,25 +43,53 @@ import torch
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
-import envs  # noqa: F401
-from agents.algos import ALGOS, algo_class
-from agents.callbacks import AtomicCheckpoint, EpisodeLog, SaveBest, restore_eval_state
-from agents.checkpoints import Checkpoint, newest_complete
-from agents.cli import (ArgumentParser, HelpFormatter, existing_dir, key_values, nonnegative_int, out_dir,
-                        positive_int, tracker_set)
-from agents.hyperparams import VEC_ENVS, Hyperparams, constructor_kwargs, load_hyperparams
-from agents.plots import learning_curve
-from agents.run_files import PICKLED_REPLAY, REPLAY, STATS, RunError, load_normalizer, load_replay_buffer, save_stats
-from agents.runs import (CONFIG, ENV_ERRORS, RESUME_KEYS, RunLock, check_free, claim_run_dir, describe_held_features,
-                         load_config, make_env, make_vec, observation_names)
-from agents.safe_load import load_model, stamp
-from envs.data.atomic_files import atomic_write, write_text_atomic
-from envs.data.otb import TRACKER_SPLIT
-from envs.episodes.actions import BACKENDS
-from envs.episodes.config import SOURCES, EnvConfig
-from envs.episodes.scoring import reward_label
+from bboxtune import envs  # noqa: F401
+from bboxtune.agents.cli import (
+    ArgumentParser,
+    HelpFormatter,
+    existing_dir,
+    key_values,
+    nonnegative_int,
+    out_dir,
+    positive_int,
+    tracker_set,
+)
+from bboxtune.agents.evaluation.plots import learning_curve
+from bboxtune.agents.training.algos import ALGOS, algo_class
+from bboxtune.agents.training.callbacks import AtomicCheckpoint, EpisodeLog, SaveBest, restore_eval_state
+from bboxtune.agents.training.checkpoints import Checkpoint, newest_complete
+from bboxtune.agents.training.hyperparams import VEC_ENVS, Hyperparams, constructor_kwargs, load_hyperparams
+from bboxtune.agents.training.run_files import (
+    PICKLED_REPLAY,
+    REPLAY,
+    STATS,
+    RunError,
+    load_normalizer,
+    load_replay_buffer,
+    save_stats,
+)
+from bboxtune.agents.training.runs import (
+    CONFIG,
+    ENV_ERRORS,
+    RESUME_KEYS,
+    RunLock,
+    check_free,
+    claim_run_dir,
+    describe_held_features,
+    load_config,
+    make_env,
+    make_vec,
+    observation_names,
+)
+from bboxtune.agents.training.safe_load import load_model, stamp
+from bboxtune.envs.data.atomic_files import atomic_write, write_text_atomic
+from bboxtune.envs.data.otb import TRACKER_SPLIT
+from bboxtune.envs.episodes.actions import BACKENDS
+from bboxtune.envs.episodes.config import SOURCES, EnvConfig
+from bboxtune.envs.episodes.scoring import reward_label
 
 DEFAULT_ENV = "bboxtune/FilterTune-v0"
 RESUME_FLAGS = {"--resume", "--timesteps", "--trust-pickle"}  # the only flags a resume takes: the rest is config.yml's
@@ -99,10 +127,10 @@ def build_parser() -> ArgumentParser:
                    help="override entries of agents/hyperparams/<algo>.yml (YAML values), e.g. n_steps:64 learning_rate:lin_1e-3")
     p.add_argument("--trackers", type=tracker_set, default=None, metavar="SET",
                    help="source otb_tracker (or mix): the trackers whose output episodes replay, one drawn per episode: "
-                        "'train' or 'test' of the tracker split (envs.data.otb.TRACKER_SPLIT) or comma-separated names "
+                        "'train' or 'test' of the tracker split (bboxtune.envs.data.otb.TRACKER_SPLIT) or comma-separated names "
                         "(default with those sources: 'train', unless --env-kwargs sets tracker or trackers)")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
-                   help="more env arguments (envs.episodes.config.EnvConfig fields, YAML values; KEY=VALUE or KEY:VALUE, split "
+                   help="more env arguments (bboxtune.envs.episodes.config.EnvConfig fields, YAML values; KEY=VALUE or KEY:VALUE, split "
                         "at the first = or :), e.g. track_length=200")
     return p
 
@@ -211,7 +239,7 @@ def check_new_model(cfg: dict[str, Any], hp: Hyperparams, venv: VecEnv, where: s
 
 
 def checkpoint_check(cfg: dict[str, Any], hp: Hyperparams, venv: VecEnv, trust_pickle: bool):
-    """``check(folder)`` for :func:`agents.checkpoints.newest_complete`: the model, its statistics and (off-policy)
+    """``check(folder)`` for :func:`bboxtune.agents.training.checkpoints.newest_complete`: the model, its statistics and (off-policy)
     its replay buffer load and fit the run's env."""
 
     def check(folder: Path) -> None:
@@ -258,6 +286,8 @@ def build(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Check
         model._last_obs = None  # the fresh envs have no episode yet: make learn() reset them
         if getattr(model, "replay_buffer", None) is not None:
             restore_replay_buffer(model, checkpoint.folder, trust_pickle)
+    if tb is None:  # SB3's own default logger would leave an empty SB3-<date> folder in the temp directory
+        model.set_logger(Logger(folder=None, output_formats=[]))
     stamp(model, cfg)
     if hp.normalize:
         eval_env = VecNormalize(eval_env, training=False, norm_obs=hp.normalize.get("norm_obs", True), norm_reward=False)
@@ -361,7 +391,7 @@ def train(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Check
     episode_log.write_csv(run_dir / "train_log.csv")
     evals = np.array([np.mean(r) for r in evaluation.evaluations_results])
     write_text_atomic(run_dir / "eval_curve.csv", "timestep,mean_reward,std_reward\n" + "".join(
-        f"{t},{m:.6g},{np.std(r):.6g}\n" for t, m, r in zip(evaluation.evaluations_timesteps, evals, evaluation.evaluations_results)))
+        f"{t},{m:.6g},{np.std(r):.6g}\n" for t, m, r in zip(evaluation.evaluations_timesteps, evals, evaluation.evaluations_results, strict=False)))
     learning_curve(run_dir / "learning_curve.png", episode_log.timesteps, episode_log.rewards,
                    evaluation.evaluations_timesteps, evaluation.evaluations_results,
                    title=f"{cfg['algo']} · {cfg['env_id']} · {cfg['env_kwargs']['backend']} · seed {cfg['seed']}")

@@ -5,7 +5,7 @@
 
 Videos: generator seeds 3 000 000 + i (none in the train/val/test splits), every one with camera motion
 (pan + shake, 5–25 px). The detector measures boxes; the background shift per frame is estimated from the
-frames (:func:`envs.video.camera.background_shift`). Compared at the same filter parameters — the fixed rule's
+frames (:func:`bboxtune.envs.video.camera.background_shift`). Compared at the same filter parameters — the fixed rule's
 σ_v, σ_w (nominal of the detector) scaled by ``--smoothing`` factors on σ_v (more smoothing to the right):
 
 * ``kf`` vs ``kf+input``: KF on the raw boxes vs with the camera velocity as known input ([Raj-UKF] eq. 18);
@@ -31,17 +31,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-import filters  # noqa: E402
-from agents.cli import (ArgumentParser, argument_errors, nonnegative_int, out_dir, positive_float,  # noqa: E402
-                        positive_int)
-from agents.stats import paired_mean_ci  # noqa: E402
-from agents.video_tables import write_csv, write_json  # noqa: E402
-from envs.data.atomic_files import atomic_write  # noqa: E402
-from envs.episodes.config import EnvConfig  # noqa: E402
-from envs.episodes.video_source import VideoSettings, VideoSource  # noqa: E402
-from envs.video.camera import UKF_CAMERA, background_shift, run_compensated  # noqa: E402
-from envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
-from envs.video.synthetic import VideoRanges, synthetic_video  # noqa: E402
+from bboxtune import filters  # noqa: E402
+from bboxtune.agents.cli import ArgumentParser, argument_errors, nonnegative_int, out_dir, positive_float, positive_int  # noqa: E402
+from bboxtune.agents.evaluation.stats import paired_mean_ci  # noqa: E402
+from bboxtune.agents.evaluation.video_tables import write_csv, write_json  # noqa: E402
+from bboxtune.envs.data.atomic_files import atomic_write  # noqa: E402
+from bboxtune.envs.episodes.config import EnvConfig  # noqa: E402
+from bboxtune.envs.episodes.video_source import VideoSettings, VideoSource  # noqa: E402
+from bboxtune.envs.video.camera import UKF_CAMERA, background_shift, run_compensated  # noqa: E402
+from bboxtune.envs.video.detectors import DETECTORS, detect_video, make_detector  # noqa: E402
+from bboxtune.envs.video.synthetic import VideoRanges, synthetic_video  # noqa: E402
 
 SEED_OFFSET = 3_000_000
 METHODS = ("kf", "kf+input", "ukf", "ukf8", "kf+true")

@@ -5,10 +5,10 @@
     python scripts/video_table.py --tuned runs/ppo_ufir_cmn_video_s0     # a train.py run (or a tuned.json)
 
 Videos: test split ``test-00000`` … (generator seeds 2 000 000 + i) and, for the tuned filter, the train split
-``train-00000`` … (seeds 0 + i) of :mod:`envs.episodes.video_source` — never the same videos. For every detector and
+``train-00000`` … (seeds 0 + i) of :mod:`bboxtune.envs.episodes.video_source` — never the same videos. For every detector and
 back end: ``raw`` = the detector's boxes (missing frames count as failures), ``rule`` = the filter with the
 fixed rule's parameters (nominal σ of the detector, N = N_opt), ``tuned`` = one action for the whole set,
-grid-searched on the training videos for the best mean success AUC (:func:`agents.video_tuning.grid_tune`), or
+grid-searched on the training videos for the best mean success AUC (:func:`bboxtune.agents.smoothing.video_tuning.grid_tune`), or
 the policy / action of ``--tuned``.
 
 Writes into ``--out`` (absent or empty; the folder appears complete at the end of the run, or not at all):
@@ -27,19 +27,18 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from agents.cli import (ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int,
-                        out_dir)
-from agents.stats import paired_mean_ci
-from agents.video_tables import csv_text, folder_in_use, json_text, publish_folder
-from agents.video_tuning import EpisodeTuner, action_map, grid_tune, load_tuner
-from envs.episodes.actions import BACKENDS
-from envs.episodes.config import TRACK_LENGTH_MAX, EnvConfig
-from envs.episodes.scoring import run_positions, score_estimates
-from envs.episodes.video_source import VideoSettings, VideoSource
-from envs.video.detectors import DETECTORS
+from bboxtune.agents.cli import ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int, out_dir
+from bboxtune.agents.evaluation.stats import paired_mean_ci
+from bboxtune.agents.evaluation.video_tables import csv_text, folder_in_use, json_text, publish_folder
+from bboxtune.agents.smoothing.video_tuning import EpisodeTuner, action_map, grid_tune, load_tuner
+from bboxtune.envs.episodes.actions import BACKENDS
+from bboxtune.envs.episodes.config import TRACK_LENGTH_MAX, EnvConfig
+from bboxtune.envs.episodes.scoring import run_positions, score_estimates
+from bboxtune.envs.episodes.video_source import VideoSettings, VideoSource
+from bboxtune.envs.video.detectors import DETECTORS
 
 METHODS = ("raw", "rule", "tuned")
-MAX_VIDEOS = 1_000_000  # videos per split (envs.episodes.video_source.VideoSettings.video_pool)
+MAX_VIDEOS = 1_000_000  # videos per split (bboxtune.envs.episodes.video_source.VideoSettings.video_pool)
 MAX_CANDIDATES = 10_000  # grid points per back end (each one filters every training video)
 
 
@@ -132,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
                 tuned_files[f"tuned/{detector}-{backend}.json"] = json_text(tuner.document(
                     detector=detector, train_success_auc=train_auc, train_videos=[ep.meta["sequence"] for ep in train]))
             auc = {m: [] for m in METHODS}
-            for ep, raw_scores in zip(test, raw):
+            for ep, raw_scores in zip(test, raw, strict=False):
                 for method, params in (("rule", ep.nominal.as_params()), ("tuned", tuner.params(ep))):
                     est = run_positions(backend, ep.y, ep.tau, params)
                     scores = score_estimates(est, ep.truth)

@@ -1,9 +1,9 @@
-"""Shared pieces of the reproduction (``scripts/reproduce.py``, :mod:`agents.commands.reproduce`): run settings,
+"""Shared pieces of the reproduction (``scripts/reproduce.py``, :mod:`bboxtune.agents.commands.reproduce`): run settings,
 error measures, markdown tables and verdicts, figure output.
 
-Every experiment module (:mod:`agents.reproduce.shmaliy_cmn`, :mod:`agents.reproduce.mo_fir`,
-:mod:`agents.reproduce.otb`) returns a :class:`Section` (markdown text plus named matplotlib figures); the
-command writes them. Files are written atomically (:mod:`envs.data.atomic_files`), so a killed run leaves either the
+Every experiment module (:mod:`bboxtune.agents.reproduce.shmaliy_cmn`, :mod:`bboxtune.agents.reproduce.mo_fir`,
+:mod:`bboxtune.agents.reproduce.otb`) returns a :class:`Section` (markdown text plus named matplotlib figures); the
+command writes them. Files are written atomically (:mod:`bboxtune.envs.data.atomic_files`), so a killed run leaves either the
 old file or the new one, never a part.
 """
 
@@ -21,8 +21,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-import filters  # noqa: E402
-from envs.data.atomic_files import atomic_write_file  # noqa: E402
+from bboxtune import filters  # noqa: E402
+from bboxtune.envs.data.atomic_files import atomic_write_file  # noqa: E402
 
 
 @dataclass(frozen=True)

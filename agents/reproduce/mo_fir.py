@@ -1,12 +1,12 @@
-"""Seed 004 (Mo, Lee, Ahn, Lim, "FIR Filters for Visual Object Tracking") Table I: KF vs Kwon's FIR at δ = 0, 10.
+"""[Mo-FIR] (Mo, Lee, Ahn, Lim, "FIR Filters for Visual Object Tracking") Table I: KF vs Kwon's FIR at δ = 0, 10.
 
-Set-up (``envs.data.simulate.PRESETS["seed004_delta0"/"seed004_delta10"]``): a 2-D centroid (x, y) constant-velocity
+Set-up (``bboxtune.envs.data.simulate.PRESETS["seed004_delta0"/"seed004_delta10"]``): a 2-D centroid (x, y) constant-velocity
 track in pixels, time in frames (τ = 1); the truth moves with F(τ + δ) while both filters assume F(τ) ([Mo-FIR]
 eqs. 1, 4: δ is a sampling-time error in A). The paper gives no q, r, track length, or horizon N; the preset's
 σ_w = 0.2 px/frame², σ_ξ = 10 px (white noise), 500 frames are the tracks helper's choice, the filters get those
 exact statistics, and N is the N_opt rule's round(√(12 σ_v / (τ² σ_w))) = 24 (a sweep of N is in the figure).
 
-Seed 004's FIR (its eq. 5) estimates s_k from z_{k−N} … z_{k−1}, a one-step *prediction*, and its Fig. 3 / Table I
+[Mo-FIR]'s FIR (its eq. 5) estimates s_k from z_{k−N} … z_{k−1}, a one-step *prediction*, and its Fig. 3 / Table I
 score "predicted position", so the main figures here are one-step predictions x̂_{n|n−1} = F x̂_{n−1} (for the
 minimum-variance FIR this equals the FIR predictor on [n−N, n−1], since w_n is independent of that window);
 filtered (posterior) errors are listed too. "Average RMSE" = the per-frame RMSE over Monte Carlo runs, averaged
@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import matplotlib.pyplot as plt
 import numpy as np
 
-import filters
-from agents.reproduce.common import Section, Settings, fmt, md_table, param_sweep, verdict
-from envs.data.simulate import PRESETS, simulate
+from bboxtune import filters
+from bboxtune.agents.reproduce.common import Section, Settings, fmt, md_table, param_sweep, verdict
+from bboxtune.envs.data.simulate import PRESETS, simulate
 
 CASES = (("seed004_delta0", 0.0), ("seed004_delta10", 10.0))  # (preset, δ in frames)
 PAPER = {("kf", 0.0): 6.88, ("kf", 10.0): 66.43, ("fir", 0.0): 7.26, ("fir", 10.0): 21.57}  # Table I, px
@@ -74,7 +74,7 @@ def run_table1(settings: Settings) -> Table1Result:
 def figure_table1(res: Table1Result) -> dict[str, plt.Figure]:
     """Per-frame predicted-position RMSE (as [Mo-FIR] Fig. 3) for δ = 0, 10 and the FIR's average RMSE vs N."""
     fig, axes = plt.subplots(1, 3, figsize=(14, 4), layout="constrained")
-    for ax, (_, delta) in zip(axes[:2], CASES):
+    for ax, (_, delta) in zip(axes[:2], CASES, strict=False):
         for name, color in (("kf", "tab:blue"), ("fir", "tab:green")):
             label = "KF" if name == "kf" else f"Kwon FIR, N = {res.horizon}"
             ax.plot(res.frame_rmse[name, delta, True], color=color, lw=0.8,
@@ -84,7 +84,7 @@ def figure_table1(res: Table1Result) -> dict[str, plt.Figure]:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     ax = axes[2]
-    for (_, delta), color in zip(CASES, ("tab:gray", "tab:purple")):
+    for (_, delta), color in zip(CASES, ("tab:gray", "tab:purple"), strict=False):
         ax.plot(res.horizons, res.sweep[delta, True], "o-", color=color, label=f"Kwon FIR, δ = {delta:g}")
         ax.axhline(res.average("kf", delta), color=color, ls="--", label=f"KF, δ = {delta:g}")
     ax.set(xscale="log", yscale="log", xlabel="horizon N", ylabel="average RMSE (px)",

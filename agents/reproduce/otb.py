@@ -7,7 +7,7 @@ Every filter runs on (cx, cy) with the paper's τ, σ_w, σ_v = σ_ξ and horizo
 RMSEs over all frames, pooled over draws. The papers filtered real tracker output ([Shmaliy-CMN]: "measurements made
 ... along coordinate x"), which is not available here; GT + CMN is the controlled substitute, so ψ is known.
 
-Seed 000 also describes how it chose N: "N ≅ 65 for [UFIR's] output to range close to the standard KF" and
+[Shmaliy-CMN] also describes how it chose N: "N ≅ 65 for [UFIR's] output to range close to the standard KF" and
 "minimization of the difference between the UFIR and KF outputs gave N ≅ 160" for the CMN versions. We repeat
 that procedure (the N minimising the RMS difference to the matching KF) over a grid of N, next to the N that
 minimises the error against the ground truth.
@@ -20,11 +20,11 @@ from dataclasses import dataclass
 import matplotlib.pyplot as plt
 import numpy as np
 
-import filters
-from agents.reproduce.common import Section, Settings, fmt, md_table, param_sweep, pooled_rmse, verdict
-from envs.data.boxes import xywh_to_cxcywh
-from envs.data.otb import OTBDataset
-from envs.data.simulate import gauss_markov
+from bboxtune import filters
+from bboxtune.agents.reproduce.common import Section, Settings, fmt, md_table, param_sweep, pooled_rmse, verdict
+from bboxtune.envs.data.boxes import xywh_to_cxcywh
+from bboxtune.envs.data.otb import OTBDataset
+from bboxtune.envs.data.simulate import gauss_markov
 
 
 @dataclass(frozen=True)
@@ -146,7 +146,7 @@ def figure_case(res: OTBResult) -> dict[str, plt.Figure]:
     frames = np.arange(len(res.truth))
     groups = (res.case.standard, ("kf_cmn", "ufir_cmn"), ("kf_cmn", "ufir_cmn"))
     titles = ("(a) x: standard filters", "(b) x: filters modified for CMN", "(c) x–y plane")
-    for ax, names, title in zip(axes, groups, titles):
+    for ax, names, title in zip(axes, groups, titles, strict=False):
         plane = title.startswith("(c)")
         pick = (lambda a: (a[:, 0], a[:, 1])) if plane else (lambda a: (frames, a[:, 0]))
         ax.plot(*pick(res.y[0]), color="0.7", lw=0.8, label="measurements (GT + CMN)")
@@ -167,7 +167,7 @@ def figure_case(res: OTBResult) -> dict[str, plt.Figure]:
 def figure_sweeps(results: list[OTBResult]) -> dict[str, plt.Figure]:
     """Per sequence: UFIR RMSE vs GT and RMS difference to the KF per horizon (top); KF RMSE per σ_w (bottom)."""
     fig, axes = plt.subplots(2, len(results), figsize=(6.5 * len(results), 8), squeeze=False, layout="constrained")
-    for top, bottom, res in zip(axes[0], axes[1], results):
+    for top, bottom, res in zip(axes[0], axes[1], results, strict=False):
         for name, color in (("ufir", "tab:red"), ("ufir_cmn", "tab:purple")):
             top.plot(res.horizons, res.sweep_rmse[name], "-", color=color, label=f"{name}: RMSE vs GT")
             top.plot(res.horizons, res.sweep_diff[name], ":", color=color,

@@ -1,6 +1,6 @@
-"""Seed 000 (Shmaliy et al., CCE 2020) §II-D: Fig. 2 (RMSE vs ψ) and the measured N_opt(ψ) of UFIR-CMN.
+"""[Shmaliy-CMN] (Shmaliy et al., CCE 2020) §II-D: Fig. 2 (RMSE vs ψ) and the measured N_opt(ψ) of UFIR-CMN.
 
-Set-up ([Shmaliy-CMN] §II-D, ``envs.data.simulate.PRESETS["seed000_two_state"]``): two-state track, σ_w = 50 m/s²
+Set-up ([Shmaliy-CMN] §II-D, ``bboxtune.envs.data.simulate.PRESETS["seed000_two_state"]``): two-state track, σ_w = 50 m/s²
 (acceleration, B = [τ²/2, τ]ᵀ), CMN v_n = ψ v_{n−1} + ξ_n with σ_ξ = 4 m, τ = 0.05 s, 2000 points, x0 = [1, 1]ᵀ.
 The filters get Q = p²σ_w² B Bᵀ and R = q²σ_ξ² (the paper's error factors p, q; p = q = 1 is Fig. 2a). The
 standard KF uses the same R ([Shmaliy-CMN]: Algorithm 1 with Ψ = 0 is the standard KF). UFIR needs no noise
@@ -18,9 +18,9 @@ from dataclasses import dataclass, replace
 import matplotlib.pyplot as plt
 import numpy as np
 
-import filters
-from agents.reproduce.common import Section, Settings, fmt, md_table, param_sweep, pooled_rmse, verdict
-from envs.data.simulate import PRESETS, simulate
+from bboxtune import filters
+from bboxtune.agents.reproduce.common import Section, Settings, fmt, md_table, param_sweep, pooled_rmse, verdict
+from bboxtune.envs.data.simulate import PRESETS, simulate
 
 SCENARIO = PRESETS["seed000_two_state"]
 BURN_IN = 250  # frames left out of every RMSE (start-up of KF and of FIR horizons up to 250)
@@ -131,7 +131,7 @@ def figure_fig2(res: Fig2Result) -> dict[str, plt.Figure]:
     ax.legend()
     wrong = [pq for pq in ERROR_FACTORS if pq != (1.0, 1.0)]
     fig_b, axes = plt.subplots(2, 2, figsize=(10, 7.5), sharex=True, sharey=True, layout="constrained")
-    for ax, (p, q) in zip(axes.ravel(), wrong):
+    for ax, (p, q) in zip(axes.ravel(), wrong, strict=False):
         for name, label in FILTER_LABELS.items():
             color, ls = STYLES[name]
             ax.plot(res.psi, res.rmse[name, p, q], color=color, ls=ls, marker=".", label=label)

@@ -8,7 +8,7 @@ because some writers add a suffix to names without it (SB3's ``save`` appends ``
 the permissions a plain ``open`` would give it (0666 less the process umask, read once at import), not
 ``mkstemp``'s 0600. The destination's folder must exist.
 
-It lives in the lowest layer that writes files (``envs.data``) and imports nothing from ``envs`` or ``agents``.
+It lives in the lowest layer that writes files (``bboxtune.envs.data``) and imports nothing from ``envs`` or ``agents``.
 """
 
 from __future__ import annotations

@@ -16,8 +16,9 @@ Conventions shared by every function here:
   Twinnings into NaN) is excluded from numerator and denominator. The OTB / pysot / got10k toolkits instead
   keep these frames in the denominator as failures, which changes a sequence's rates by at most 1/T: 1/472 on
   Twinnings (T = 472), 1/698 on Board. Measured against got10k's conventions (both differences) on the 13
-  OTB-100 trackers of ``shared/data/otb``: per sequence |Δ success AUC| <= 1.7e-3 and |Δ precision@20 px| <=
-  2.1e-3 (= 1/472, Twinnings); the sequence means differ by <= 1.3e-4 (``tests/scripts/test_otb_eval.py``).
+  OTB-100 trackers of ``shared/data/otb``: per sequence ``|Δ success AUC| <= 1.7e-3`` and
+  ``|Δ precision@20 px| <= 2.1e-3`` (= 1/472, Twinnings); the sequence means differ by <= 1.3e-4
+  (``tests/scripts/test_otb_eval.py``).
 * **Missing predictions** (a NaN row where the ground truth exists) count as failures: IoU 0 and centre error
   +inf. For :func:`rmse` a NaN estimate makes the result NaN (never silently dropped).
 * A sequence with no valid ground-truth frame scores NaN.
@@ -161,7 +162,7 @@ def _detection_counts(pred: np.ndarray, gt: np.ndarray, thresholds: ArrayLike):
 
 
 def iou_precision(pred: ArrayLike, gt: ArrayLike, thresholds: ArrayLike = SUCCESS_THRESHOLDS) -> np.ndarray:
-    """Seed 001 precision TP / (TP + FP) per IoU threshold (eq. 2).
+    """[PaleRamon-BBox] precision TP / (TP + FP) per IoU threshold (eq. 2).
 
     A frame with valid ground truth and a prediction is a true positive when IoU >= threshold (the paper's
     "greater or equal"), else a false positive. Frames without a prediction are neither (they lower the recall
@@ -173,7 +174,7 @@ def iou_precision(pred: ArrayLike, gt: ArrayLike, thresholds: ArrayLike = SUCCES
 
 
 def f_score(pred: ArrayLike, gt: ArrayLike, thresholds: ArrayLike = SUCCESS_THRESHOLDS) -> np.ndarray:
-    """Seed 001 F-score (eq. 4) per IoU threshold: F = 2 P R / (P + R), P = :func:`iou_precision`,
+    """[PaleRamon-BBox] F-score (eq. 4) per IoU threshold: F = 2 P R / (P + R), P = :func:`iou_precision`,
     R = TP / (frames with valid ground truth); F = 0 where P + R = 0.
 
     (..., T, 4), (..., T, 4) → (..., n_thresholds)."""
@@ -248,7 +249,7 @@ def score_sequences(preds: Sequence[ArrayLike], gts: Sequence[ArrayLike]) -> Seq
     p_list = [_boxes(f"preds[{i}]", p) for i, p in enumerate(preds)]
     g_list = [_boxes(f"gts[{i}]", g) for i, g in enumerate(gts)]
     lengths = np.array([len(g) for g in g_list])
-    for i, (p, g) in enumerate(zip(p_list, g_list)):
+    for i, (p, g) in enumerate(zip(p_list, g_list, strict=False)):
         if p.shape != g.shape or p.ndim != 2 or len(g) == 0:
             raise ValueError(f"sequence {i}: pred shape {p.shape} and gt shape {g.shape} must be equal (T >= 1, 4)")
     p_all, g_all = np.concatenate(p_list), np.concatenate(g_list)

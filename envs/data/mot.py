@@ -2,11 +2,11 @@
 noise statistics a simulator needs.
 
 Data (``$MOT_ROOT``, CI: ``../shared/data/mot15``): ``sequences.csv`` and ``<seq>/det/det.txt``,
-``<seq>/gt/gt.txt`` in the MOT15 layout read by :mod:`envs.data.mot_io`. Conventions, as the benchmark scores a
+``<seq>/gt/gt.txt`` in the MOT15 layout read by :mod:`bboxtune.envs.data.mot_io`. Conventions, as the benchmark scores a
 detection stream (``shared/notes/mot-baselines.md``):
 
-* **Boxes** are xywh in pixels ((x, y) top-left, continuous areas, :mod:`envs.data.boxes`). The filters'
-  (cx, cy, w, h) come from :meth:`MOTIdentity.track` (or ``envs.data.boxes.xywh_to_cxcywh``).
+* **Boxes** are xywh in pixels ((x, y) top-left, continuous areas, :mod:`bboxtune.envs.data.boxes`). The filters'
+  (cx, cy, w, h) come from :meth:`MOTIdentity.track` (or ``bboxtune.envs.data.boxes.xywh_to_cxcywh``).
 * **Invalid ground truth**: rows with flag 0 are ignored, neither matched nor scored nor part of an identity.
 * **Matching** (:func:`match_identities`): per frame, the Hungarian assignment maximising the summed IoU between
   the frame's detections and its counted ground-truth boxes, over pairs with IoU >= :data:`MATCH_IOU` (pairs
@@ -28,11 +28,11 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from envs.data import otb, textfile
-from envs.data.boxes import xywh_to_cxcywh
-from envs.data.metrics import iou
-from envs.data.mot_io import Detections, GroundTruth, read_detections, read_ground_truth, read_sequences_csv
-from envs.data.simulate import Track
+from bboxtune.envs.data import otb, textfile
+from bboxtune.envs.data.boxes import xywh_to_cxcywh
+from bboxtune.envs.data.metrics import iou
+from bboxtune.envs.data.mot_io import Detections, GroundTruth, read_detections, read_ground_truth, read_sequences_csv
+from bboxtune.envs.data.simulate import Track
 
 MOT_ROOT_ENV = "MOT_ROOT"
 MATCH_IOU = 0.5  # the MOT benchmark's detection-to-ground-truth threshold
@@ -64,7 +64,7 @@ class MOTIdentity:
         return int(np.isfinite(self.scores).sum())
 
     def track(self) -> Track:
-        """The episode as a :class:`envs.data.simulate.Track` in (cx, cy, w, h) px (``otb.replay_tracker``)."""
+        """The episode as a :class:`bboxtune.envs.data.simulate.Track` in (cx, cy, w, h) px (``otb.replay_tracker``)."""
         return otb.replay_tracker(self.truth, self.measured, tau=self.tau)
 
 
@@ -174,7 +174,7 @@ def load_identities(root: str | os.PathLike | None = None, sequences: Iterable[s
 
 
 def split(identities: Iterable[MOTIdentity]) -> dict[str, tuple[MOTIdentity, ...]]:
-    """Identities by train / val / test part of their sequence, with the OTB rule :func:`envs.data.otb.split`.
+    """Identities by train / val / test part of their sequence, with the OTB rule :func:`bboxtune.envs.data.otb.split`.
 
     The rule hashes the sequence's video name (``otb.video_of``: ``ADL-Rundle-6`` and ``ADL-Rundle-8`` are the
     video ``ADL-Rundle`` and share a part). On the six MOT15 sequences of ``shared/data/mot15``: train =

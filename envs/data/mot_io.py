@@ -10,14 +10,14 @@ Layout (MOT15, the only one accepted): every line holds exactly 10 comma-separat
 
 MOT16 and later ground truth (9 columns with class and visibility) is rejected by the column count. Frames are
 1-based; boxes are **xywh** in pixels: (x, y) the top-left corner, (w, h) the size, with continuous areas as in
-:mod:`envs.data.boxes` (``xywh_to_cxcywh`` gives the filters' (cx, cy, w, h)). The world coordinates X, Y, Z
+:mod:`bboxtune.envs.data.boxes` (``xywh_to_cxcywh`` gives the filters' (cx, cy, w, h)). The world coordinates X, Y, Z
 (ETH sequences) are checked as numbers and not returned. Row i of every returned array is line i + 1.
 
-The reader follows :mod:`envs.data.otb_io`: ``ValueError("<file>:<line>: <what is wrong; allowed ...>")`` on
+The reader follows :mod:`bboxtune.envs.data.otb_io`: ``ValueError("<file>:<line>: <what is wrong; allowed ...>")`` on
 malformed input, never a silent wrong or dropped value, in time linear in the file size (no regex; a
 vectorised path for the whole file, else for each block of 1,000 lines, and the line-by-line checker, which
 names the first bad line, for a block it does not take). Limits: files up to :data:`MAX_FILE_BYTES` (64 MiB),
-lines up to :data:`MAX_LINE_CHARS` (1,024) characters, numbers as in :mod:`envs.data.number_grammar`. Accepted:
+lines up to :data:`MAX_LINE_CHARS` (1,024) characters, numbers as in :mod:`bboxtune.envs.data.number_grammar`. Accepted:
 
 * UTF-8 (a byte-order mark is allowed), LF or CRLF line ends, blank lines only at the end of the file (the
   ETH-Pedcross2 det.txt ends with one); commas between fields, optionally with spaces or tabs around them;
@@ -36,9 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from envs.data import textfile
-from envs.data.number_grammar import comma_values, parse_float, shorten
-from envs.data.otb_io import csv_int, read_csv_table, read_text
+from bboxtune.envs.data import textfile
+from bboxtune.envs.data.number_grammar import comma_values, parse_float, shorten
+from bboxtune.envs.data.otb_io import csv_int, read_csv_table, read_text
 
 MAX_FILE_BYTES = textfile.MAX_TEXT_BYTES  # read_text's limit; the largest MOT15 gt.txt is 0.3 MB
 MAX_LINE_CHARS = 1024  # a MOT line of ten full-precision doubles takes about 250

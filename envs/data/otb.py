@@ -17,7 +17,7 @@ Layouts (auto-detected by :class:`OTBDataset` from ``root``, else ``$OTB_ROOT``)
 Ground truth is (T, 4) float xywh (1-based OTB pixels, unchanged); zero-size boxes are missing frames (NaN rows).
 Tracker outputs are aligned line by line with the ground truth (row i = frame ``first_frame + i``).
 
-Replay sources (episodes from OTB ground truth, as :class:`envs.data.simulate.Track` in (cx, cy, w, h) px, the
+Replay sources (episodes from OTB ground truth, as :class:`bboxtune.envs.data.simulate.Track` in (cx, cy, w, h) px, the
 filters' ``ndim = 4`` measurements): (a) :func:`replay_synthetic`, synthetic CMN scaled to the box size; (b)
 :func:`replay_tracker`, a real tracker's output as the measurement. Missing ground-truth rows are NaN in
 ``truth``. OTB has no velocity annotation: ``truth_state`` velocities are backward differences
@@ -37,10 +37,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from envs.data import textfile
-from envs.data.boxes import xywh_to_cxcywh
-from envs.data.otb_io import csv_int, read_boxes, read_csv_table, read_pysot_json, video_of
-from envs.data.simulate import Track, gauss_markov
+from bboxtune.envs.data import textfile
+from bboxtune.envs.data.boxes import xywh_to_cxcywh
+from bboxtune.envs.data.otb_io import csv_int, read_boxes, read_csv_table, read_pysot_json, video_of
+from bboxtune.envs.data.simulate import Track, gauss_markov
 
 logger = logging.getLogger(__name__)
 

@@ -5,7 +5,7 @@ silent wrong value, and runs in time linear in the file size: no backtracking re
 take a vectorised path for the whole file, else for each block of 1,000 lines, and a block it does not take
 goes to the line-by-line checker, which names the first bad line. Limits: files up to
 :data:`MAX_FILE_BYTES` (64 MiB), box lines up to :data:`MAX_LINE_CHARS` (1,024) characters, numbers as in
-:mod:`envs.data.number_grammar` (ASCII decimals of at most 64 characters; no ``_``, nan/inf, hex or non-ASCII
+:mod:`bboxtune.envs.data.number_grammar` (ASCII decimals of at most 64 characters; no ``_``, nan/inf, hex or non-ASCII
 digits). A path that is a directory, pipe or device is an error naming it. Accepted box text (one x, y, w, h
 box per line, OTB's 1-based pixel coordinates):
 
@@ -28,12 +28,11 @@ import logging
 import os
 import re
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 
-from envs.data import textfile
-from envs.data.number_grammar import MAX_NUMBER_CHARS, comma_values, parse_float, parse_int, shorten
+from bboxtune.envs.data import textfile
+from bboxtune.envs.data.number_grammar import MAX_NUMBER_CHARS, comma_values, parse_float, parse_int, shorten
 
 logger = logging.getLogger(__name__)
 
@@ -85,7 +84,7 @@ def _fast_boxes(body: str) -> np.ndarray | None:
     """(T, 4) values of lines (``body``, no final newline) that are each four numbers joined by single commas (or
     by single tabs, when no line has a comma), in vectorised linear time; None for any other text (then the
     line-by-line checker decides). Characters limited to digits, sign, point and e/E make ``float`` parse
-    exactly the grammar of :mod:`envs.data.number_grammar`."""
+    exactly the grammar of :mod:`bboxtune.envs.data.number_grammar`."""
     if not body.isascii():
         return None
     if "," not in body:
@@ -177,7 +176,7 @@ def read_csv_table(path: str | os.PathLike, required: tuple[str, ...]) -> list[t
 
 
 def csv_int(row: dict[str, str], column: str, path: str | os.PathLike, line: int, low: int = 0) -> int:
-    """An integer cell >= ``low`` (grammar of :func:`envs.data.number_grammar.parse_int`), or a ValueError naming the
+    """An integer cell >= ``low`` (grammar of :func:`bboxtune.envs.data.number_grammar.parse_int`), or a ValueError naming the
     file, line and column."""
     try:
         value = parse_int(row[column])
@@ -201,7 +200,7 @@ def _unique_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
 def _json_number(literal: str) -> float:
     if len(literal) > MAX_NUMBER_CHARS:
         raise ValueError(f"number {shorten(literal)} is longer than {MAX_NUMBER_CHARS} characters")
-    return float(literal)  # JSON's number grammar is a subset of envs.data.number_grammar's
+    return float(literal)  # JSON's number grammar is a subset of bboxtune.envs.data.number_grammar's
 
 
 def _is_number(value: object) -> bool:

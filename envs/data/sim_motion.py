@@ -16,7 +16,8 @@ Per box (time in s, h = τ + δ the truth's frame step; n = 0 … T − 1):
 
 The process starts in its stationary law (x0 gives the first box; its velocities are not used). Random draws,
 in the "cv" model's order and shapes first: ε of the jitter and the sizes (B, T − 1, 4), the CMN ξ (B, T, M);
-then the jitter start and the cruise values (B, T + 1, 2) and the switch uniforms (B, T, 2). The arithmetic of a track does not depend on the batch it is drawn in.
+then the jitter start and the cruise values (B, T + 1, 2) and the switch uniforms (B, T, 2). The arithmetic of a
+track does not depend on the batch it is drawn in.
 """
 
 from __future__ import annotations

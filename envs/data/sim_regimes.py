@@ -4,7 +4,8 @@
 episode's drawn scenario (ψ, σ_w, σ_ξ, τ, box size: the same as the stationary episode of that noise seed) as
 the first regime, and adds, from an independent generator ``default_rng((noise_seed, 4))``:
 
-* **noise regimes** — ``noise_switches`` switch times (uniform, distinct, in [T // 10, T − T // 10), so that no regime is a sliver at either end); each new regime draws
+* **noise regimes** — ``noise_switches`` switch times (uniform, distinct, in [T // 10, T − T // 10), so that no
+  regime is a sliver at either end); each new regime draws
   ψ (uniform in ``psi_range``) and σ_ξ (log-uniform in ``sigma_xi_range``) afresh — a detector that starts or
   stops drifting. The CMN runs on across a switch: v_n = ψ_k v_{n−1} + ξ_n, ξ_n ~ N(0, σ_ξ,k²) in regime k
   ([Shmaliy-CMN] eq. 2 with piecewise-constant ψ, σ_ξ);
@@ -30,7 +31,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from envs.data.simulate import Scenario, Track, assemble, initial_conditions, log_uniform
+from bboxtune.envs.data.simulate import Scenario, Track, assemble, initial_conditions, log_uniform
 
 
 @dataclass(frozen=True)
@@ -53,7 +54,7 @@ def _intervals(rng: np.random.Generator, count: tuple[int, int], length: tuple[i
     n = int(rng.integers(count[0], count[1], endpoint=True))
     starts = np.sort(rng.integers(1, T, size=n))
     lengths = rng.integers(length[0], length[1], endpoint=True, size=n)
-    return [[int(s), int(min(s + k, T))] for s, k in zip(starts, lengths)]
+    return [[int(s), int(min(s + k, T))] for s, k in zip(starts, lengths, strict=False)]
 
 
 def simulate_nonstationary(base: Scenario, noise_seed: int, psi_range: tuple[float, float],
@@ -69,7 +70,7 @@ def simulate_nonstationary(base: Scenario, noise_seed: int, psi_range: tuple[flo
     n_switch = min(n_switch, inner.size)
     cuts = [0, *np.sort(rng.choice(inner, size=n_switch, replace=False)).tolist(), T]
     regimes = [{"start": 0, "end": cuts[1], "psi": base.psi, "sigma_xi": base.sigma_xi}]
-    for start, end in zip(cuts[1:-1], cuts[2:]):
+    for start, end in zip(cuts[1:-1], cuts[2:], strict=False):
         regimes.append({"start": int(start), "end": int(end), "psi": float(rng.uniform(*psi_range)),
                         "sigma_xi": log_uniform(rng, sigma_xi_range)})
     manoeuvres = _intervals(rng, ranges.manoeuvres, ranges.manoeuvre_frames, T)

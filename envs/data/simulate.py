@@ -28,7 +28,7 @@ boxes as empty).
 
 Motion models (``Scenario.motion``): "cv" (default) is the model above; "otb" (box tracks only) replaces the
 truth's motion by the one fitted to OTB-100's ground truth — scale-relative centre velocity with manoeuvres and
-a log-size random walk (:mod:`envs.data.sim_motion`, docs/otb_motion.md) — with the same CMN (2)–(3); ``sigma_w`` and
+a log-size random walk (:mod:`bboxtune.envs.data.sim_motion`, docs/otb_motion.md) — with the same CMN (2)–(3); ``sigma_w`` and
 ``sigma_w_log_size`` are then unused and ``velocity_rms``, ``size_rw`` set the episode's motion level.
 
 Everything is drawn from the ``numpy.random.Generator`` passed in, so an episode is reproducible from its seed.
@@ -43,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.signal import lfilter
 
-from envs.data.sim_motion import OTB_MOTION, draw_extra, otb_paths, reflect
+from bboxtune.envs.data.sim_motion import OTB_MOTION, draw_extra, otb_paths, reflect
 
 MOTIONS = ("cv", "otb")  # truth motion models: constant velocity ([Shmaliy-CMN] eq. 1) or fitted to OTB-100
 _NDIMS = (1, 2, 4)  # scalar two-state, centroid (cx, cy), box (cx, cy, w, h)
@@ -74,7 +74,7 @@ class Scenario:
     sigma_w_log_size: float = 0.002  # 1/s²: acceleration noise std of log w and log h (ndim 4)
     size_noise_ratio: float = 0.5  # σ_ξ of the w, h measurements as a fraction of sigma_xi (ndim 4)
     size_bounds: tuple[float, float] = (4.0, 1000.0)  # px: true w and h are reflected at these bounds (ndim 4)
-    motion: str = "cv"  # "cv": model (1); "otb": envs.data.sim_motion's fitted OTB motion (ndim 4 only)
+    motion: str = "cv"  # "cv": model (1); "otb": bboxtune.envs.data.sim_motion's fitted OTB motion (ndim 4 only)
     velocity_rms: float = 1.0  # box scales/s: rms centre velocity σ_r ("otb")
     size_rw: float = 0.1  # 1/√s: random-walk std σ_ℓ of log w and log h ("otb")
 
@@ -185,7 +185,7 @@ def simulate_each(scenarios: list[Scenario], rngs: list[np.random.Generator]) ->
     T, C, B = s0.n_frames, len(starts[0][2]), len(scenarios)
     w, e = np.empty((B, T - 1, C)), np.empty((B, T, s0.M))
     normals, uniforms = np.empty((B, T + 1, 2)), np.empty((B, T, 2))
-    for i, (rng, (_, _, sigma, sigma_xi, _)) in enumerate(zip(rngs, starts)):  # in simulate's order: w, ξ, extras
+    for i, (rng, (_, _, sigma, sigma_xi, _)) in enumerate(zip(rngs, starts, strict=False)):  # in simulate's order: w, ξ, extras
         w[i] = rng.standard_normal((T - 1, C)) * (sigma if s0.motion == "cv" else 1.0)
         e[i] = rng.standard_normal((T, s0.M)) * sigma_xi
         if s0.motion == "otb":
@@ -265,7 +265,7 @@ class ScenarioRanges:
     size: tuple[float, float] = (20.0, 200.0)  # px, initial w and h (independent, log-uniform), ndim 4
     ndim: int = 4  # 1, 2 or 4 (see Scenario)
     size_bounds: tuple[float, float] = (4.0, 1000.0)  # px, where true w and h are reflected (Scenario.size_bounds)
-    motion: str = "cv"  # Scenario.motion; "otb" draws velocity_rms and size_rw (envs.data.sim_motion), σ_w is unused
+    motion: str = "cv"  # Scenario.motion; "otb" draws velocity_rms and size_rw (bboxtune.envs.data.sim_motion), σ_w is unused
 
     def __post_init__(self) -> None:
         for name in ("psi", "sigma_w", "sigma_xi", "tau", "n_frames", "delta", "size"):
@@ -313,23 +313,23 @@ _SEED001_SIM = Scenario(psi=0.0, sigma_w=4.0, sigma_xi=3.0, tau=0.05, n_frames=1
 _SEED004 = Scenario(psi=0.0, sigma_w=0.2, sigma_xi=10.0, tau=1.0, n_frames=500, ndim=2)
 
 PRESETS: dict[str, Scenario] = {
-    # Seed 000 §II.D: two-state track, σ_w = 50 m/s², σ_ξ = 4 m, τ = 0.05 s, 2000 points, x0 = [1, 1]ᵀ, P0 = 0.
+    # [Shmaliy-CMN] §II.D: two-state track, σ_w = 50 m/s², σ_ξ = 4 m, τ = 0.05 s, 2000 points, x0 = [1, 1]ᵀ, P0 = 0.
     # The paper sweeps ψ over [0, 0.95]; use dataclasses.replace(PRESETS[...], psi=...).
     "seed000_two_state": _SEED000_TWO_STATE,
-    # Seed 000 §III (Car4): τ = 0.05 s, σ_w = 3, σ_ξ = 2, ψ ≈ 0.9, as a box track starting from Car4's first
+    # [Shmaliy-CMN] §III (Car4): τ = 0.05 s, σ_w = 3, σ_ξ = 2, ψ ≈ 0.9, as a box track starting from Car4's first
     # box (70, 51, 107, 87) for Car4's 659 frames.
     "seed000_car4": Scenario(psi=0.9, sigma_w=3.0, sigma_xi=2.0, tau=0.05, n_frames=659, ndim=4,
                              x0=_box_x0(70, 51, 107, 87)),
-    # Seed 001 §9.1 simulated data 1 (σ_w = 4, σ_ξ = 3, 1000 points, T = 0.05 s; N_opt = 15) and 2 (σ_w = 45,
+    # [PaleRamon-BBox] §9.1 simulated data 1 (σ_w = 4, σ_ξ = 3, 1000 points, T = 0.05 s; N_opt = 15) and 2 (σ_w = 45,
     # σ_ξ = 25; N_opt = 10). ψ, x0 and the box sizes are lost in our text copy of the paper: white noise
     # (ψ = 0) and the default 64×48 box are our choice.
     "seed001_sim1": _SEED001_SIM,
     "seed001_sim2": replace(_SEED001_SIM, sigma_w=45.0, sigma_xi=25.0),
-    # Seed 001 §9.2 "SUV" tuning: σ_w = 10, σ_ξ = 5, T = 0.05 s (N_opt = √(12·5/(0.05²·10)) = 49, as reported),
+    # [PaleRamon-BBox] §9.2 "SUV" tuning: σ_w = 10, σ_ξ = 5, T = 0.05 s (N_opt = √(12·5/(0.05²·10)) = 49, as reported),
     # as a box track from the OTB Suv first box (142, 125, 91, 40) for its 945 frames; ψ = 0 (not recoverable).
     "seed001_suv": Scenario(psi=0.0, sigma_w=10.0, sigma_xi=5.0, tau=0.05, n_frames=945, ndim=4,
                             x0=_box_x0(142, 125, 91, 40)),
-    # Seed 004 Table I: 2-D centroid (x, y) CV track in pixels with time in frames (τ = 1) and sampling-time
+    # [Mo-FIR] Table I: 2-D centroid (x, y) CV track in pixels with time in frames (τ = 1) and sampling-time
     # error δ = 0 or 10 in F. The paper gives no q, r or length: white noise σ_ξ = 10 px, σ_w = 0.2 px/frame²
     # (a KF then has RMSE ≈ 6 px at δ = 0, near the paper's 6.88) and 500 frames are our choice.
     "seed004_delta0": _SEED004,

@@ -1,5 +1,5 @@
-"""The episode layer of :mod:`envs`: an :class:`~envs.episodes.sources.Episode` (measured boxes, truth, the rule's
+"""The episode layer of :mod:`envs`: an :class:`~bboxtune.envs.episodes.sources.Episode` (measured boxes, truth, the rule's
 nominal values) drawn by a source (simulator, OTB replay, tracker output, synthetic video, a mix), the env
-arguments (:class:`~envs.episodes.config.EnvConfig`), the action mapping, the observation features and the
-scoring of candidate parameters. No Gymnasium: the envs on top (:mod:`envs.tune_env`, :mod:`envs.retune_env`)
+arguments (:class:`~bboxtune.envs.episodes.config.EnvConfig`), the action mapping, the observation features and the
+scoring of candidate parameters. No Gymnasium: the envs on top (:mod:`bboxtune.envs.tune_env`, :mod:`bboxtune.envs.retune_env`)
 turn these into Gym episodes."""

@@ -12,7 +12,7 @@ An action is a float vector in [-1, 1]^d, one entry per tuned parameter (``tune`
 | std_weight_velocity    | σ_ṗ = stock · 10^(D a), stock 1/160      (log scale)   | stock · [10^-D, 10^D]          |
 | std_aspect_measurement | s_m = stock · 10^(D a), stock 1e-1       (log scale)   | stock · [10^-D, 10^D]          |
 
-The last three are ``bytetrack_kf``'s (:mod:`filters.bytetrack_kf`: its noise weights relative to the box height
+The last three are ``bytetrack_kf``'s (:mod:`bboxtune.filters.bytetrack_kf`: its noise weights relative to the box height
 and the aspect's measurement std). Their nominal value is ByteTrack's published one (:data:`STOCK`) in every
 episode, whatever its σ: the fixed rule of that back end is the stock filter practitioners run, so its reward
 measures the gain over stock ByteTrack. Every back end's :class:`Nominal` carries them (untouched by the others).
@@ -34,14 +34,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from filters.bytetrack_kf import ByteTrackKF
-from filters.horizon import rule_horizon
-from filters.registry import NAMES
+from bboxtune.filters.bytetrack_kf import ByteTrackKF
+from bboxtune.filters.horizon import rule_horizon
+from bboxtune.filters.registry import NAMES
 
 # bytetrack_kf's tunable parameters at their published values (the nominal of every episode: module docstring)
 STOCK: dict[str, float] = {k: ByteTrackKF.DEFAULTS[k] for k in
                            ("std_weight_position", "std_weight_velocity", "std_aspect_measurement")}
-SIGMA_PARAMETERS: tuple[str, ...] = ("psi", "horizon", "sigma_w", "sigma_v")  # what the filters.NAMES back ends take
+SIGMA_PARAMETERS: tuple[str, ...] = ("psi", "horizon", "sigma_w", "sigma_v")  # what the bboxtune.filters.NAMES back ends take
 TUNABLE: tuple[str, ...] = (*SIGMA_PARAMETERS, *STOCK)
 
 # Which parameters each back end accepts from the tuner (the others stay at their nominal values).
@@ -56,7 +56,7 @@ ACCEPTS: dict[str, tuple[str, ...]] = {
     "ukf": ("sigma_w", "sigma_v"),
     "bytetrack_kf": tuple(STOCK),  # std_aspect_measurement on request only (tune=...)
 }
-# The back ends of the envs: the eight of filters.NAMES and ByteTrack's box KF (sort_kf has no parameters to tune)
+# The back ends of the envs: the eight of bboxtune.filters.NAMES and ByteTrack's box KF (sort_kf has no parameters to tune)
 BACKENDS: tuple[str, ...] = (*NAMES, "bytetrack_kf")
 
 # Default ``tune``: OFIR/OUFIR/FIR gains depend on σ_w/σ_v only through their ratio, so σ_v stays nominal.
@@ -77,7 +77,7 @@ _TOLERANCE = 1e-6
 
 def parameter_family(backend: str) -> tuple[str, ...]:
     """The parameters of ``backend``'s family, which records of its runs list (untuned ones at their nominal values):
-    :data:`SIGMA_PARAMETERS` for the eight of ``filters.NAMES``, bytetrack_kf's three (:data:`STOCK`) for it."""
+    :data:`SIGMA_PARAMETERS` for the eight of ``bboxtune.filters.NAMES``, bytetrack_kf's three (:data:`STOCK`) for it."""
     return tuple(STOCK) if backend == "bytetrack_kf" else SIGMA_PARAMETERS
 
 
@@ -100,7 +100,7 @@ class Nominal:
     @classmethod
     def of_rule(cls, sigma_v: float, sigma_w: float, tau: float, psi: float, horizon_max: int) -> Nominal:
         """The fixed rule's parameters for nominal σ_v, σ_w (px, px/s²) at frame interval ``tau`` (s): ψ as
-        given and N = N_opt(σ_v, σ_w, τ) within [``K_AXIS``, ``horizon_max``] (:func:`filters.horizon.rule_horizon`)."""
+        given and N = N_opt(σ_v, σ_w, τ) within [``K_AXIS``, ``horizon_max``] (:func:`bboxtune.filters.horizon.rule_horizon`)."""
         horizon = rule_horizon(sigma_v, sigma_w, tau, K_AXIS, max_horizon=horizon_max)
         return cls(sigma_w=sigma_w, sigma_v=sigma_v, psi=psi, horizon=int(horizon))
 

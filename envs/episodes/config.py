@@ -17,16 +17,16 @@ from typing import Any
 
 import numpy as np
 
-from envs.data.sim_detections import DROPOUTS
-from envs.episodes.actions import ACCEPTS, BACKENDS, DEFAULT_TUNE
-from envs.video.detectors import DETECTORS
+from bboxtune.envs.data.sim_detections import DROPOUTS
+from bboxtune.envs.episodes.actions import ACCEPTS, BACKENDS, DEFAULT_TUNE
+from bboxtune.envs.video.detectors import DETECTORS
 
 SOURCES = ("sim", "otb", "otb_tracker", "video", "mix", "mot")
 MIX_SOURCES = ("sim", "otb", "otb_tracker")  # the parts of source "mix", in the order of mix_weights
 SPLITS = ("train", "val", "test")
 SCENARIOS = ("stationary", "nonstationary")  # sim: one regime per track, or regimes switching within it
 REWARDS = ("rmse", "iou_precision", "success_auc")
-# Longest track (frames). Simulated box sizes are reflected at ``box_size_bounds`` (envs.data.simulate), so they
+# Longest track (frames). Simulated box sizes are reflected at ``box_size_bounds`` (bboxtune.envs.data.simulate), so they
 # stay plausible at any length; the bound keeps a track's memory and filter time moderate (a 100,000-frame
 # episode: 3.2 MB per (T, 4) array; reset + step ~0.8 s with ufir_cmn, ~2 s with kf_cmn or ukf on a 2-core
 # machine) and centre excursions well resolved in float64 (default ranges: at most 3.3e7 px from the start
@@ -122,14 +122,14 @@ class EnvConfig:
     """Every argument of ``bboxtune/FilterTune-v0`` and ``bboxtune/FilterRetune-v0`` (units, allowed values)."""
 
     # "sim" | "otb" (GT + synthetic CMN) | "otb_tracker" (real tracker output) | "video" | "mix" | "mot" (MOT15 public
-    # detections matched to ground-truth identities, envs.episodes.mot_source)
+    # detections matched to ground-truth identities, bboxtune.envs.episodes.mot_source)
     source: str = "sim"
-    backend: str = "ufir_cmn"  # any name in envs.episodes.actions.BACKENDS: filters.NAMES and "bytetrack_kf"
+    backend: str = "ufir_cmn"  # any name in bboxtune.envs.episodes.actions.BACKENDS: bboxtune.filters.NAMES and "bytetrack_kf"
     reward: str = "rmse"  # "rmse": log(RMSE_rule / RMSE); "iou_precision" / "success_auc": difference to the rule
     # FilterTune-v0: what the reward is measured against, "rule" | "raw" (the unfiltered measurements: the same best
     # action per episode, a lower-variance signal where the filter should stay near the measurements)
     reward_baseline: str = "rule"
-    tune: tuple[str, ...] | None = None  # parameters the agent sets; None -> envs.episodes.actions.DEFAULT_TUNE[backend]
+    tune: tuple[str, ...] | None = None  # parameters the agent sets; None -> bboxtune.envs.episodes.actions.DEFAULT_TUNE[backend]
     track_length: int = 500  # frames per simulated track / video, integer in [8, TRACK_LENGTH_MAX]
     # sim scenario distribution ((low, high); log-uniform for σ, uniform otherwise)
     psi_range: tuple[float, float] = (0.0, 0.95)  # within [0, 0.99]
@@ -138,24 +138,25 @@ class EnvConfig:
     tau_range: tuple[float, float] = (1 / 30, 0.1)  # s, frame interval; within [1e-3, 1]
     box_size_range: tuple[float, float] = (20.0, 200.0)  # px, initial w and h; within box_size_bounds
     box_size_bounds: tuple[float, float] = (4.0, 1000.0)  # px, simulated w and h are reflected here; within [1, 1e5]
-    # sim truth motion: "cv" (constant velocity, σ_w above) | "otb" (fitted to OTB-100, envs.data.sim_motion: scale-relative
+    # sim truth motion: "cv" (constant velocity, σ_w above) | "otb" (fitted to OTB-100,
+    # bboxtune.envs.data.sim_motion: scale-relative
     # velocity with manoeuvres, log-size random walk; sigma_w_range then only sets the rule's nominal σ_w)
     motion: str = "cv"
     # sim "stationary": one ψ, σ_w, σ_ξ per track | "nonstationary": regime switches of ψ and σ_ξ, manoeuvre bursts
-    # and occlusion gaps within a track (envs.data.sim_regimes, documented with its ranges); sim / mix with motion "cv"
+    # and occlusion gaps within a track (bboxtune.envs.data.sim_regimes, documented with its ranges); sim / mix with motion "cv"
     scenario: str = "stationary"
     # sim measurement noise: "absolute" (CMN of σ_ξ px from sigma_xi_range added to the boxes; nominal σ the centres
     # of the σ ranges) | "box" (the "otb" source's noise on the simulated truth: box-relative CMN, σ_rel from
     # cmn_rel_range; nominal σ = otb_sigma_v_rel / otb_sigma_w_rel × the measured box scale); sim / mix, stationary
     sim_noise: str = "absolute"
-    # detection errors of a real detection stream, added to the measurements (envs.data.sim_detections; sources sim,
+    # detection errors of a real detection stream, added to the measurements (bboxtune.envs.data.sim_detections; sources sim,
     # otb, otb_tracker and mix, not video or mot, whose detectors already miss): missed frames (NaN rows of y, the
     # first and last measured frame kept) — "none" | "bernoulli" (each frame missed independently at the episode's
     # miss rate) | "runs" (Gilbert–Elliott miss runs of mean length miss_run at that rate)
     detection_dropout: str = "none"
     miss_rate_range: tuple[float, float] = (0.0, 0.6)  # fraction of frames missed, per episode, uniform; within [0, 0.95]
     miss_run_range: tuple[float, float] = (1.0, 20.0)  # frames, mean miss run ("runs"), log-uniform; within [1, 1000]
-    # probability that a measured frame's box is a wrong match (a nearby object's box: envs.data.sim_detections), per
+    # probability that a measured frame's box is a wrong match (a nearby object's box: bboxtune.envs.data.sim_detections), per
     # episode, uniform; with any detection_dropout; within [0, 0.5]
     outlier_rate_range: tuple[float, float] = (0.0, 0.0)
     # OTB sources
@@ -163,22 +164,22 @@ class EnvConfig:
     split: str = "train"  # "train" | "val" | "test": which sequences episodes are drawn from
     tracker: str = "SiamFC"  # source "otb_tracker": whose output is the measurement (a non-empty name)
     # "otb_tracker" / "mix": the trackers an episode's tracker is drawn from, uniformly (names under the OTB
-    # root's trackers/, distinct; envs.data.otb.TRACKER_SPLIT has the default split); None -> (tracker,)
+    # root's trackers/, distinct; bboxtune.envs.data.otb.TRACKER_SPLIT has the default split); None -> (tracker,)
     trackers: tuple[str, ...] | None = None
     # source "mix": relative weights of its parts (sim, otb, otb_tracker), each a real in [0, 1e6], sum > 0
     mix_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    mot_root: str | None = None  # source "mot": folder of the MOT15 data (envs.data.mot); None -> $MOT_ROOT
+    mot_root: str | None = None  # source "mot": folder of the MOT15 data (bboxtune.envs.data.mot); None -> $MOT_ROOT
     otb_tau: float = 1 / 30  # s, OTB frame interval (30 fps); in [1e-3, 1]
     # OTB sources, train split only (augmentation for fast motion): each episode plays its sequence at a random frame
-    # stride k in [1, otb_speedup_max] (envs.episodes.sources.OTBSource), so the object moves k times as far per frame
-    # (source "mot" too: its identities are then played at fps / k, τ = k / fps, envs.episodes.mot_source);
+    # stride k in [1, otb_speedup_max] (bboxtune.envs.episodes.sources.OTBSource), so the object moves k times as far per frame
+    # (source "mot" too: its identities are then played at fps / k, τ = k / fps, bboxtune.envs.episodes.mot_source);
     # the val and test splits always play every frame; integer in [1, 8]
     otb_speedup_max: int = 1
     cmn_rel_range: tuple[float, float] = (0.01, 0.1)  # source "otb": σ_ξ relative to the box size, log-uniform; within [1e-4, 1]
     otb_sigma_v_rel: float = 0.03  # nominal σ_v relative to the measured box scale (OTB sources); in (0, 10]
     otb_sigma_w_rel: float = 3.0  # 1/s², nominal σ_w relative to the measured box scale (OTB sources); in (0, 1e4]
-    # source "video": synthetic videos measured by a real detector (envs.episodes.video_source.VideoSource)
-    detector: str = "template"  # one of envs.video.detectors.DETECTORS
+    # source "video": synthetic videos measured by a real detector (bboxtune.envs.episodes.video_source.VideoSource)
+    detector: str = "template"  # one of bboxtune.envs.video.detectors.DETECTORS
     video_pool: int = 64  # distinct videos per split, integer in [1, 1e6]
     video_cache: str | None = None  # folder caching rendered + detected videos; None: memory only
     video_size: tuple[int, int] = (320, 240)  # px, frame width and height, integers in [64, 4096]
@@ -196,7 +197,7 @@ class EnvConfig:
     retune_reward: str = "track"
     # what a re-tuning step observes: "causal" (the frames already filtered: a filter behind a live tracker) |
     # "offline" (a recorded track, all of whose measurements exist before the filter runs: the observation adds the
-    # measurement features of the coming window and of the whole track, envs.retune_env)
+    # measurement features of the coming window and of the whole track, bboxtune.envs.retune_env)
     retune_view: str = "causal"
 
     def __post_init__(self) -> None:

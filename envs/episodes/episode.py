@@ -1,6 +1,6 @@
 """An episode (one track: measured boxes, truth, the rule's nominal parameters) and the interface of the sources
-that draw them (:mod:`envs.episodes.sources` has the simulator, OTB and mixed sources and ``make_source``;
-:mod:`envs.episodes.video_source` the synthetic-video source)."""
+that draw them (:mod:`bboxtune.envs.episodes.sources` has the simulator, OTB and mixed sources and ``make_source``;
+:mod:`bboxtune.envs.episodes.video_source` the synthetic-video source)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from envs.episodes.actions import Nominal
-from envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.actions import Nominal
+from bboxtune.envs.episodes.config import EnvConfig
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,7 @@ import warnings
 
 import numpy as np
 
-from filters.horizon import n_opt
+from bboxtune.filters.horizon import n_opt
 
 FEATURE_NAMES: tuple[str, ...] = (
     "log_scale", "log_tau", "log_var_d1_pos", "log_var_d2_pos", "log_var_d1_size", "log_var_d2_size",

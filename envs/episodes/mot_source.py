@@ -1,11 +1,11 @@
 """Episodes of real detection streams (``source="mot"``): one MOT15 ground-truth identity each, measured by the
-public detections matched to it frame by frame (:mod:`envs.data.mot`).
+public detections matched to it frame by frame (:mod:`bboxtune.envs.data.mot`).
 
 An episode runs from the identity's first to its last matched detection: ``y`` holds the matched detection
 (cx, cy, w, h) or a NaN row where none was matched (a detection gap, which the filter fills by prediction),
 ``truth`` the identity's ground-truth box or a NaN row where it has none (occlusion, a flag-0 row). τ = 1 / the
 sequence's frame rate (7–30 fps). The pool is the identities of the config's ``split`` (by sequence, the OTB
-rule: :func:`envs.data.mot.split`) that keep at least ``min_frames`` frames; an unpinned draw picks one uniformly
+rule: :func:`bboxtune.envs.data.mot.split`) that keep at least ``min_frames`` frames; an unpinned draw picks one uniformly
 from ``default_rng((noise_seed, 0))`` (the noise seed only chooses the identity: the stream itself is data). An
 identity is named ``"<sequence>/<id>"`` (``options={"sequence": "KITTI-13/7"}`` pins it).
 
@@ -26,11 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from envs.data import mot
-from envs.data.boxes import xywh_to_cxcywh
-from envs.episodes.config import EnvConfig
-from envs.episodes.episode import Episode, Source, rule_nominal
-from envs.episodes.features import box_scale
+from bboxtune.envs.data import mot
+from bboxtune.envs.data.boxes import xywh_to_cxcywh
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.episode import Episode, Source, rule_nominal
+from bboxtune.envs.episodes.features import box_scale
 
 STRIDED_MIN_FRAMES = 20  # frames an identity keeps at the least when played at a stride k > 1 (mot.MIN_FRAMES)
 

@@ -4,30 +4,30 @@ from __future__ import annotations
 
 import numpy as np
 
-import filters
-from envs.data import metrics
-from envs.episodes.actions import ACCEPTS
-from filters.bytetrack_kf import SIZE_MIN
+from bboxtune import filters
+from bboxtune.envs.data import metrics
+from bboxtune.envs.episodes.actions import ACCEPTS
+from bboxtune.filters.bytetrack_kf import SIZE_MIN
 
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
 POSITIVE_SIZES = ("bytetrack_kf", "sort_kf")  # back ends that take boxes with w, h >= SIZE_MIN only (they filter the aspect w / h)
 
 
 def box_model(tau: float) -> filters.StateSpaceModel:
-    """The (cx, cy, w, h) constant-velocity model at frame interval ``tau`` (:func:`filters.constant_velocity`,
+    """The (cx, cy, w, h) constant-velocity model at frame interval ``tau`` (:func:`bboxtune.filters.constant_velocity`,
     which caches its models)."""
     return filters.constant_velocity(float(tau), ndim=4)
 
 
 def _used(backend: str, params: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The parameters of the env's set (``envs.episodes.actions.TUNABLE``: psi, horizon, sigma_w, sigma_v and
+    """The parameters of the env's set (``bboxtune.envs.episodes.actions.TUNABLE``: psi, horizon, sigma_w, sigma_v and
     bytetrack_kf's weights) that ``backend`` takes (``ACCEPTS``)."""
     return {k: params[k] for k in ACCEPTS[backend]}
 
 
 def detections(backend: str, y: np.ndarray) -> np.ndarray:
     """The measured boxes ``y`` (..., T, 4) as ``backend`` receives them: for :data:`POSITIVE_SIZES` a box with w or h
-    below :data:`filters.bytetrack_kf.SIZE_MIN` is no detection (a NaN row: a detector reports no such box, and
+    below :data:`bboxtune.filters.bytetrack_kf.SIZE_MIN` is no detection (a NaN row: a detector reports no such box, and
     simulated noise can push a small box's measured size to or below 0); every other back end takes ``y`` as it is
     (the same array)."""
     small = (y[..., 2:] < SIZE_MIN).any(axis=-1) if backend in POSITIVE_SIZES else None  # NaN compares False
@@ -41,14 +41,14 @@ def detections(backend: str, y: np.ndarray) -> np.ndarray:
 def run_positions(backend: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray]) -> np.ndarray:
     """Filter the measured boxes ``y`` (T, 4) (as :func:`detections`) once per candidate: ``params`` maps names to
     arrays (A,); only the parameters ``backend`` accepts are passed. Returns position estimates (A, T, 4) cx, cy,
-    w, h (:func:`filters.candidate_positions`, which also handles frame units)."""
+    w, h (:func:`bboxtune.filters.candidate_positions`, which also handles frame units)."""
     return filters.candidate_positions(backend, detections(backend, y), tau, _used(backend, params))
 
 
 def run_tracks(backend: str, ys: list[np.ndarray], taus: list[float], params: dict[str, np.ndarray]) -> list[np.ndarray]:
     """Filter B tracks, each with its own parameter set: ``ys`` B arrays (T_b, 4), ``taus`` their frame
     intervals, ``params`` arrays (B,). Returns the position estimates, B arrays (T_b, 4), each equal to
-    :func:`run_positions` on its track (:func:`filters.track_positions`: tracks of equal length share a call)."""
+    :func:`run_positions` on its track (:func:`bboxtune.filters.track_positions`: tracks of equal length share a call)."""
     return filters.track_positions(backend, [detections(backend, y) for y in ys], taus, _used(backend, params))
 
 
@@ -76,9 +76,9 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
     episode) or (A, T, 4) (one episode per row) — all cx, cy, w, h; each value (A,).
 
     ``rmse``: sqrt(mean over frames of the squared Euclidean error of (cx, cy, w, h)) in px
-    (:func:`envs.data.metrics.rmse_total`); ``iou_mean``; ``success_auc``, ``precision20`` and
+    (:func:`bboxtune.envs.data.metrics.rmse_total`); ``iou_mean``; ``success_auc``, ``precision20`` and
     ``iou_precision`` ([PaleRamon-BBox]'s TP/(TP+FP), averaged over its 21 IoU thresholds) with the conventions of
-    :mod:`envs.data.metrics` — computed here from one IoU and one centre-error pass (the tests check equality
+    :mod:`bboxtune.envs.data.metrics` — computed here from one IoU and one centre-error pass (the tests check equality
     with the metric functions). Frames without ground truth are left out; a missing estimate where the
     truth exists counts as a failure (IoU 0, infinite centre error) and is not a detection, and is left
     out of the RMSE (filters have no estimate before a track's first finite measurement — the same frames
@@ -96,7 +96,7 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
         n_scored = scored.sum(axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             rmse = np.where(n_scored > 0, np.sqrt(np.where(scored, squared, 0.0).sum(axis=1) / n_scored), np.nan)
-    # IoU and centre error as envs.data.metrics computes them on xywh boxes (x = cx − w/2, widths clipped at 0)
+    # IoU and centre error as bboxtune.envs.data.metrics computes them on xywh boxes (x = cx − w/2, widths clipped at 0)
     x, y = cx - 0.5 * w, cy - 0.5 * h
     gx0, gy0 = gx - 0.5 * gw, gy - 0.5 * gh
     wc, hc, gwc, ghc = np.maximum(w, 0.0), np.maximum(h, 0.0), np.maximum(gw, 0.0), np.maximum(gh, 0.0)

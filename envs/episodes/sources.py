@@ -7,14 +7,14 @@ exactly the same episode. The generators: ``default_rng(noise_seed)`` the sim sc
 ``(noise_seed, 0)`` the OTB sequence, ``(noise_seed, 1)`` the "otb" CMN, ``(noise_seed, 2)`` the tracker,
 ``(noise_seed, 3)`` the part of a "mix", ``(noise_seed, 4)`` the frame stride of an OTB training episode
 (``otb_speedup_max``), ``(noise_seed, 5)`` the detection errors (``detection_dropout``, ``outlier_rate_range``:
-missed frames and wrong boxes, :mod:`envs.data.sim_detections`) — independent streams, so adding trackers, a
+missed frames and wrong boxes, :mod:`bboxtune.envs.data.sim_detections`) — independent streams, so adding trackers, a
 mix or detection errors changes none of the others.
 
 Detection errors (sources "sim", "otb", "otb_tracker" and every part of "mix"; not "video" or "mot", whose
 detectors already miss) are added to an episode's measured boxes after its noise and before its nominal σ,
 which the OTB sources and ``sim_noise="box"`` take from the measured boxes — from what the agent sees. The
 episode's ``scenario`` gains their drawn ``miss_rate``, ``miss_run``, ``outlier_rate``
-(:meth:`envs.data.sim_detections.DetectionModel.parameters`). Without them (the defaults) nothing is drawn
+(:meth:`bboxtune.envs.data.sim_detections.DetectionModel.parameters`). Without them (the defaults) nothing is drawn
 from stream 5 and every episode is what it was.
 
 An episode keeps what identifies it (``meta``: sequence, noise seed, τ, tracker — shown to the agent at
@@ -35,19 +35,18 @@ from typing import Any
 
 import numpy as np
 
-from envs.data.boxes import cxcywh_to_xywh
-from envs.data.otb import OTBDataset, replay_synthetic, replay_tracker, split
-from envs.data.sim_detections import DetectionModel
-from envs.data.sim_regimes import simulate_nonstationary
-from envs.data.simulate import Scenario, ScenarioRanges, Track, simulate_each
-from envs.episodes.actions import K_AXIS, Nominal
-from envs.episodes.config import MIX_SOURCES, EnvConfig
-from envs.episodes.episode import Episode, Source, rule_nominal
-from envs.episodes.features import box_scale
-from envs.episodes.mot_source import MOTSource
-from envs.episodes.video_source import VideoSource
-from filters.horizon import rule_horizon
-
+from bboxtune.envs.data.boxes import cxcywh_to_xywh
+from bboxtune.envs.data.otb import OTBDataset, replay_synthetic, replay_tracker, split
+from bboxtune.envs.data.sim_detections import DetectionModel
+from bboxtune.envs.data.sim_regimes import simulate_nonstationary
+from bboxtune.envs.data.simulate import Scenario, ScenarioRanges, Track, simulate_each
+from bboxtune.envs.episodes.actions import K_AXIS, Nominal
+from bboxtune.envs.episodes.config import MIX_SOURCES, EnvConfig
+from bboxtune.envs.episodes.episode import Episode, Source, rule_nominal
+from bboxtune.envs.episodes.features import box_scale
+from bboxtune.envs.episodes.mot_source import MOTSource
+from bboxtune.envs.episodes.video_source import VideoSource
+from bboxtune.filters.horizon import rule_horizon
 
 SPEEDUP_MIN_FRAMES = 64  # frames an OTB training episode keeps at the least when played at a stride > 1
 
@@ -71,7 +70,7 @@ def _detected(cfg: EnvConfig, noise_seeds: list[int], ys: list[np.ndarray], trut
 
 
 class SimSource(Source):
-    """Simulated CV boxes with Gauss–Markov CMN (:mod:`envs.data.simulate`); the scenario is drawn per episode
+    """Simulated CV boxes with Gauss–Markov CMN (:mod:`bboxtune.envs.data.simulate`); the scenario is drawn per episode
     from the config's ranges. Nominal σ are the geometric centres of the σ ranges."""
 
     def __init__(self, cfg: EnvConfig) -> None:
@@ -92,28 +91,28 @@ class SimSource(Source):
         return self.draw_many([noise_seed])[0]
 
     def draw_many(self, noise_seeds: list[int]) -> list[Episode]:
-        """The episodes of ``noise_seeds``, simulated in one vectorised pass (:func:`envs.data.simulate.simulate_each`:
+        """The episodes of ``noise_seeds``, simulated in one vectorised pass (:func:`bboxtune.envs.data.simulate.simulate_each`:
         each equal to drawing it alone)."""
         if not noise_seeds:
             return []
         rngs = [np.random.default_rng(seed) for seed in noise_seeds]
         scenarios = [self.ranges.sample(rng) for rng in rngs]
         if self.cfg.scenario == "nonstationary":
-            episodes = [self._nonstationary(seed, scenario) for seed, scenario in zip(noise_seeds, scenarios)]
+            episodes = [self._nonstationary(seed, scenario) for seed, scenario in zip(noise_seeds, scenarios, strict=False)]
             ys, drawn = _detected(self.cfg, noise_seeds, [ep.y for ep in episodes], [ep.truth for ep in episodes])
-            return [replace(ep, y=y, scenario={**ep.scenario, **d}) for ep, y, d in zip(episodes, ys, drawn)]
+            return [replace(ep, y=y, scenario={**ep.scenario, **d}) for ep, y, d in zip(episodes, ys, drawn, strict=False)]
         tracks = simulate_each(scenarios, rngs)
         horizons = rule_horizon(self.sigma_v_nominal, self.sigma_w_nominal, np.array([t.tau for t in tracks]), K_AXIS,
                                 max_horizon=self.cfg.horizon_max)
-        truths = [self._truth(scenario, track) for scenario, track in zip(scenarios, tracks)]
+        truths = [self._truth(scenario, track) for scenario, track in zip(scenarios, tracks, strict=False)]
         ys = [track.y for track in tracks]
         if self.cfg.sim_noise == "box":
             ys = [self._box_noise(seed, scenario.psi, track, truth)
-                  for seed, scenario, track, truth in zip(noise_seeds, scenarios, tracks, truths)]
+                  for seed, scenario, track, truth in zip(noise_seeds, scenarios, tracks, truths, strict=False)]
         ys, drawn = _detected(self.cfg, noise_seeds, ys, [track.truth for track in tracks])
         episodes = []
         for seed, scenario, track, horizon, y, truth, d in zip(noise_seeds, scenarios, tracks, horizons.tolist(), ys,
-                                                               truths, drawn):
+                                                               truths, drawn, strict=False):
             meta = {"sequence": None, "noise_seed": seed, "tau": scenario.tau}
             if self.cfg.sim_noise == "box":  # the OTB sources' nominal σ, relative to the measured box scale
                 scale = box_scale(y)
@@ -138,7 +137,8 @@ class SimSource(Source):
 
     def _box_noise(self, seed: int, psi: float, track: Track, truth: dict[str, Any]) -> np.ndarray:
         """``sim_noise="box"``: the measurements (T, 4) of the simulated truth, taken as the "otb" source measures
-        OTB ground truth (:func:`envs.data.otb.replay_synthetic`: CMN of ψ and a σ_rel log-uniform in ``cmn_rel_range``, from
+        OTB ground truth (:func:`bboxtune.envs.data.otb.replay_synthetic`: CMN of ψ and a σ_rel log-uniform in
+        ``cmn_rel_range``, from
         ``default_rng((seed, 1))``, scaled by the true box); ``truth`` gains ``sigma_rel`` (its ``sigma_xi`` is
         then the unused absolute draw's, removed). The nominal σ are the OTB sources' (:meth:`draw_many`)."""
         rng = np.random.default_rng((seed, 1))
@@ -149,7 +149,7 @@ class SimSource(Source):
         return measured.y
 
     def _nonstationary(self, seed: int, scenario: Scenario) -> Episode:
-        """The nonstationary episode of ``seed`` around its drawn ``scenario`` (:mod:`envs.data.sim_regimes`)."""
+        """The nonstationary episode of ``seed`` around its drawn ``scenario`` (:mod:`bboxtune.envs.data.sim_regimes`)."""
         track, truth = simulate_nonstationary(scenario, seed, self.cfg.psi_range, self.cfg.sigma_xi_range)
         nominal = rule_nominal(self.cfg, self.sigma_v_nominal, self.sigma_w_nominal, track.tau)
         return Episode(truth=track.truth, y=track.y, tau=track.tau, nominal=nominal,
@@ -275,7 +275,8 @@ class OTBSource(Source):
 
 
 class MixSource(Source):
-    """Source "mix": each episode's part — "sim", "otb" or "otb_tracker" (``envs.episodes.config.MIX_SOURCES``) — is drawn
+    """Source "mix": each episode's part — "sim", "otb" or "otb_tracker"
+    (``bboxtune.envs.episodes.config.MIX_SOURCES``) — is drawn
     with probabilities proportional to ``mix_weights`` from ``default_rng((noise_seed, 3))``; the episode is
     then that part's episode of the same noise seed (what a single-source env of the part draws, with the
     same config: nominal σ, the fixed rule and the scenario come from the part), with ``meta["source"]``
@@ -293,7 +294,7 @@ class MixSource(Source):
             except ValueError as err:
                 raise ValueError(f"source='mix' with mix_weights={cfg.mix_weights!r} draws OTB episodes and needs the "
                                  f"OTB data (give the otb parts weight 0 to mix without it): {err}") from None
-        for name, weight in zip(MIX_SOURCES, cfg.mix_weights):
+        for name, weight in zip(MIX_SOURCES, cfg.mix_weights, strict=False):
             if weight > 0:
                 part = replace(cfg, source=name, mix_weights=(1.0, 1.0, 1.0),
                                trackers=cfg.trackers if name == "otb_tracker" else None,
@@ -323,8 +324,8 @@ class MixSource(Source):
     def draw_many(self, noise_seeds: list[int]) -> list[Episode]:
         """The episodes of ``noise_seeds`` (the sim ones simulated in one vectorised pass), in order."""
         parts = [self.part_of(seed) for seed in noise_seeds]
-        sim = iter(self.parts["sim"].draw_many([s for s, p in zip(noise_seeds, parts) if p == "sim"]) if "sim" in self.parts else [])
-        return [_labelled(next(sim) if p == "sim" else self.parts[p].draw(None, s), p) for s, p in zip(noise_seeds, parts)]
+        sim = iter(self.parts["sim"].draw_many([s for s, p in zip(noise_seeds, parts, strict=False) if p == "sim"]) if "sim" in self.parts else [])
+        return [_labelled(next(sim) if p == "sim" else self.parts[p].draw(None, s), p) for s, p in zip(noise_seeds, parts, strict=False)]
 
 
 def _labelled(episode: Episode, part: str) -> Episode:

@@ -32,13 +32,13 @@ from typing import Any
 
 import numpy as np
 
-from envs.data.atomic_files import atomic_write
-from envs.data.boxes import xywh_to_cxcywh
-from envs.episodes.actions import Nominal
-from envs.episodes.episode import Episode, Source
-from envs.episodes.features import box_scale
-from envs.video.detectors import DETECTORS, detect_video, make_detector
-from envs.video.synthetic import VideoRanges, synthetic_video
+from bboxtune.envs.data.atomic_files import atomic_write
+from bboxtune.envs.data.boxes import xywh_to_cxcywh
+from bboxtune.envs.episodes.actions import Nominal
+from bboxtune.envs.episodes.episode import Episode, Source
+from bboxtune.envs.episodes.features import box_scale
+from bboxtune.envs.video.detectors import DETECTORS, detect_video, make_detector
+from bboxtune.envs.video.synthetic import VideoRanges, synthetic_video
 
 GENERATOR_VERSION = 2  # bump when the generator or a detector changes its output (2: re-detection, template scales)
 SPLIT_OFFSET = {"train": 0, "val": 1_000_000, "test": 2_000_000}  # generator seed = offset + index
@@ -55,7 +55,7 @@ NOMINAL_REL: dict[str, tuple[float, float]] = {
 class VideoSettings:
     """Settings of the video source; the env config fields of the same names override the defaults."""
 
-    detector: str = "template"  # one of envs.video.detectors.DETECTORS
+    detector: str = "template"  # one of bboxtune.envs.video.detectors.DETECTORS
     video_pool: int = 64  # distinct videos per split
     video_cache: str | None = None  # folder of the on-disk cache; None: memory only
     video_size: tuple[int, int] = (320, 240)  # px, frame width and height
@@ -91,7 +91,7 @@ _MEMORY: dict[str, dict[str, np.ndarray]] = {}
 
 def detected_video(seed: int, detector: str, n_frames: int, size: tuple[int, int] = (320, 240),
                    cache: str | os.PathLike | None = None) -> dict[str, np.ndarray]:
-    """Render video ``seed`` (:func:`envs.video.synthetic.synthetic_video`) and run ``detector`` on it.
+    """Render video ``seed`` (:func:`bboxtune.envs.video.synthetic.synthetic_video`) and run ``detector`` on it.
 
     Returns ``{"truth": (T, 4), "y": (T, 4)}`` xywh px (NaN rows: no detection), ``"tau"`` () s and
     ``"camera"`` (T, 2) px (true camera offset, for analysis); cached as described in the module docstring."""
@@ -126,7 +126,7 @@ def parse_sequence(name: str) -> tuple[str, int]:
 
 
 class VideoSource(Source):
-    """Episodes from synthetic videos of one split measured by one detector (an :class:`envs.episodes.sources.Source`:
+    """Episodes from synthetic videos of one split measured by one detector (an :class:`bboxtune.envs.episodes.sources.Source`:
     ``draw(sequence, noise_seed) -> Episode``; boxes cx, cy, w, h)."""
 
     def __init__(self, cfg: Any, settings: VideoSettings | None = None) -> None:

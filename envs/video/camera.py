@@ -7,7 +7,7 @@ has no predecessor: 0). On the synthetic generator this measures the true shift 
 
 Two ways to use it ([Raj-UKF] §IV):
 
-* UKF with the camera-augmented model of eq. 17 (``filters.make("ukf", ..., camera_motion=True)``), fed
+* UKF with the camera-augmented model of eq. 17 (``bboxtune.filters.make("ukf", ..., camera_motion=True)``), fed
   the apparent background velocity at each frame (:func:`background_velocity`, px/s) —
   :func:`run_compensated` with ``backend="ukf"``;
 * the camera-velocity input of eq. 18 for any linear back end: with the camera velocity known, adding it as
@@ -24,8 +24,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-import filters
-from envs.video.detector import to_gray
+from bboxtune import filters
+from bboxtune.envs.video.detector import to_gray
 
 _MAX_CORNERS = 300  # corners tracked per frame
 _RANSAC_PX = 0.5  # px, inlier threshold of the background similarity

@@ -1,7 +1,7 @@
 """The detector interface of the video front end: :class:`Detector` (start on the first frame with the initial
 box, then one xywh box per frame, NaN when nothing is found, searching near the last box), and the small image
-helpers the detectors share. The detectors themselves live in :mod:`envs.video.detectors` (background
-subtraction, the registry) and :mod:`envs.video.matching` (template and keypoint matching)."""
+helpers the detectors share. The detectors themselves live in :mod:`bboxtune.envs.video.detectors` (background
+subtraction, the registry) and :mod:`bboxtune.envs.video.matching` (template and keypoint matching)."""
 
 from __future__ import annotations
 

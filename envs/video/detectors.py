@@ -29,8 +29,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from envs.video.detector import NAN_BOX, Detector, blob_boxes, check_range, to_gray
-from envs.video.matching import FeatureDetector, TemplateDetector
+from bboxtune.envs.video.detector import NAN_BOX, Detector, blob_boxes, check_range, to_gray
+from bboxtune.envs.video.matching import FeatureDetector, TemplateDetector
 
 DETECTORS: tuple[str, ...] = ("bgsub", "mog2", "template", "sift", "orb", "regions")
 

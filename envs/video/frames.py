@@ -4,7 +4,7 @@ Frames are yielded lazily as BGR uint8 (H, W, 3), so long videos are never held 
 
 OTB folders: the boxes of a sequence start at image ``first_frame`` (``sequences.csv``; e.g. BlurCar1 at
 247, David at 300) and last ``n_frames`` images; :func:`otb_frames` looks the sequence up in an OTB data
-folder (``otb_root`` or ``$OTB_ROOT``, any layout :class:`envs.data.otb.OTBDataset` reads) and returns the
+folder (``otb_root`` or ``$OTB_ROOT``, any layout :class:`bboxtune.envs.data.otb.OTBDataset` reads) and returns the
 matching images together with the ground truth, falling back to ``groundtruth_rect.txt`` inside the folder
 and then to all images from 1 without ground truth. OTB boxes are 1-based (Matlab) pixel coordinates.
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from envs.data.otb import OTBDataset, read_boxes
+from bboxtune.envs.data.otb import OTBDataset, read_boxes
 
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff")
 

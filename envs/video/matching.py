@@ -1,7 +1,7 @@
 """Appearance-matching detectors: NCC template matching ([Raj-UKF] §III-B) and keypoint matching ([Raj-UKF]
 §III-C uses SURF, which is patent-encumbered and absent from OpenCV's free build; SIFT and ORB stand in).
 
-Conventions as in :mod:`envs.video.detectors` (xywh, 0-based, continuous areas; NaN = nothing found).
+Conventions as in :mod:`bboxtune.envs.video.detectors` (xywh, 0-based, continuous areas; NaN = nothing found).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from envs.video.detector import NAN_BOX, Detector, check_range, to_gray
+from bboxtune.envs.video.detector import NAN_BOX, Detector, check_range, to_gray
 
 
 def _parabola_peak(left: float, centre: float, right: float) -> float:

@@ -265,7 +265,7 @@ def _noise_field(rng: np.random.Generator, h: int, w: int, cells: tuple[int, ...
                  weights: tuple[float, ...]) -> np.ndarray:
     """Multi-octave value noise in [0, 1] (float32, (h, w)): bicubic upsampling of random grids."""
     out = np.zeros((h, w), np.float32)
-    for cell, weight in zip(cells, weights):
+    for cell, weight in zip(cells, weights, strict=False):
         grid = rng.random((h // cell + 2, w // cell + 2)).astype(np.float32)
         out += weight * cv2.resize(grid, (w, h), interpolation=cv2.INTER_CUBIC)
     out -= out.min()
@@ -292,7 +292,7 @@ def _background(rng: np.random.Generator, h: int, w: int, hue: int) -> np.ndarra
                           rng.uniform(0.2, 0.95, (1, n_shapes)))[0]
     centres = rng.uniform((0, 0), (w, h), (n_shapes, 2)).astype(int)
     radii = rng.uniform(3, 14, (n_shapes, 2)).astype(int)
-    for c, r, colour, kind in zip(centres, radii, colours, rng.integers(0, 2, n_shapes)):  # texture set-up only
+    for c, r, colour, kind in zip(centres, radii, colours, rng.integers(0, 2, n_shapes), strict=False):  # texture set-up only
         if kind:
             cv2.ellipse(img, tuple(map(int, c)), tuple(map(int, r)), 0, 0, 360, colour.tolist(), -1, cv2.LINE_AA)
         else:

@@ -6,7 +6,7 @@ import gymnasium as gym
 import pytest
 import torch
 
-import envs  # noqa: F401
+from bboxtune import envs  # noqa: F401
 
 torch.set_num_threads(1)  # tiny MLPs: more intra-op threads only contend for the cores
 

@@ -1,4 +1,4 @@
-"""agents.cli: one-line parser errors, strict numbers, path checks that create nothing, JSON/YAML errors with
+"""bboxtune.agents.cli: one-line parser errors, strict numbers, path checks that create nothing, JSON/YAML errors with
 file:line, and linear-time checks of huge values."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from agents import cli
+from bboxtune.agents import cli, readers
 
 
 def rejects(parse, text: str) -> str:
@@ -101,7 +101,7 @@ def test_read_json_names_file_and_line(tmp_path, text, where):
     path = tmp_path / "t.json"
     path.write_text(text)
     with pytest.raises(ValueError, match="^" + str(path) + where):
-        cli.read_json(path)
+        readers.read_json(path)
     assert where in rejects(cli.json_file, str(path))
 
 
@@ -112,16 +112,16 @@ def test_read_yaml_names_file_and_line(tmp_path, text, where):
     path = tmp_path / "t.yml"
     path.write_text(text)
     with pytest.raises(ValueError, match="^" + str(path) + where):
-        cli.read_yaml(path)
+        readers.read_yaml(path)
 
 
 def test_readers_name_folders_and_bad_encodings(tmp_path):
     with pytest.raises(ValueError, match="is a directory, expected a file"):
-        cli.read_yaml(tmp_path)
+        readers.read_yaml(tmp_path)
     path = tmp_path / "t.json"
     path.write_bytes(b'{"a":\n "\xff"}')
     with pytest.raises(ValueError, match=r"t\.json:2: not UTF-8 text"):
-        cli.read_json(path)
+        readers.read_json(path)
 
 
 def test_json_and_yaml_files_give_their_path_and_data(tmp_path):

@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.splits import RESERVED, SplitSeeds, eval_seeds, otb_episodes, split_of, split_seeds, train_seeds
+from bboxtune.agents.splits import RESERVED, SplitSeeds, eval_seeds, otb_episodes, split_of, split_seeds, train_seeds
 
 from .conftest import ENV_ID, SHORT
 

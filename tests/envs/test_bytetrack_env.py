@@ -1,5 +1,5 @@
 """backend="bytetrack_kf" in FilterTune-v0 and FilterRetune-v0: its rule is stock ByteTrack (the filter of
-``filters.make("bytetrack_kf", model)`` with the published weights), every env path runs it (checkers, score, the
+``bboxtune.filters.make("bytetrack_kf", model)`` with the published weights), every env path runs it (checkers, score, the
 batched env, re-tuning with carried state, MOT15 episodes), and what it refuses."""
 
 from __future__ import annotations
@@ -12,13 +12,18 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-import envs
-import filters
-from agents.baselines import GridSearch, OraclePolicy, RuleEstimatedSigmaPolicy, RulePolicy, RuleTrueSigmaPolicy
-from agents.episodes import rule_action
-from envs.episodes.actions import BACKENDS, STOCK
-from envs.episodes.features import box_scale
-from envs.episodes.scoring import box_model, detections
+from bboxtune import envs, filters
+from bboxtune.agents.episodes import rule_action
+from bboxtune.agents.policies.baselines import (
+    GridSearch,
+    OraclePolicy,
+    RuleEstimatedSigmaPolicy,
+    RulePolicy,
+    RuleTrueSigmaPolicy,
+)
+from bboxtune.envs.episodes.actions import BACKENDS, STOCK
+from bboxtune.envs.episodes.features import box_scale
+from bboxtune.envs.episodes.scoring import box_model, detections
 
 TUNE, RETUNE = envs.TUNE_ID, envs.RETUNE_ID
 SIM = {"backend": "bytetrack_kf", "track_length": 64}

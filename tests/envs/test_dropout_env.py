@@ -11,11 +11,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs
-import filters
-from envs.data.simulate import simulate_each
-from envs.episodes.config import EnvConfig
-from envs.episodes.sources import make_source
+from bboxtune import envs, filters
+from bboxtune.envs.data.simulate import simulate_each
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.sources import make_source
 from tests.envs.conftest import OTB_ROOT, needs_otb
 from tests.envs.test_vector import _single_steps, _tracks
 
@@ -40,7 +39,7 @@ def test_defaults_draw_the_simulated_measurements_unchanged() -> None:
     ranges = make_source(cfg).ranges
     rngs = [np.random.default_rng(seed) for seed in SEEDS]
     tracks = simulate_each([ranges.sample(rng) for rng in rngs], rngs)
-    for ep, track in zip(episodes, tracks):
+    for ep, track in zip(episodes, tracks, strict=False):
         np.testing.assert_array_equal(ep.y, track.y)
         assert sorted(ep.scenario) == ["psi", "sigma_w", "sigma_xi"]
 
@@ -54,7 +53,7 @@ def test_errors_change_only_measured_rows_and_add_their_parameters_to_the_scenar
     used = {"miss_rate": dropout != "none", "miss_run": dropout == "runs", "outlier_rate": "outlier_rate_range" in errors}
     keys = {k for k, u in used.items() if u}
     n_missed = n_wrong = 0
-    for a, b in zip(plain, errs):
+    for a, b in zip(plain, errs, strict=False):
         np.testing.assert_array_equal(b.truth, a.truth)
         assert b.meta == a.meta and b.tau == a.tau
         assert keys <= b.scenario.keys() and b.scenario == {**a.scenario, **{k: b.scenario[k] for k in keys}}
@@ -177,7 +176,7 @@ def test_otb_episodes_get_errors_and_a_nominal_from_what_is_left(kwargs: dict) -
     cfg = EnvConfig(otb_root=OTB_ROOT, **kwargs)
     plain = make_source(cfg).draw_many(SEEDS)
     errs = make_source(EnvConfig(otb_root=OTB_ROOT, **kwargs, **RUNS)).draw_many(SEEDS)
-    for a, b in zip(plain, errs):
+    for a, b in zip(plain, errs, strict=False):
         np.testing.assert_array_equal(b.truth, a.truth)
         assert b.meta == a.meta and {"miss_rate", "miss_run", "outlier_rate"} <= b.scenario.keys()
         assert _missing(b.y).sum() >= _missing(a.y).sum()

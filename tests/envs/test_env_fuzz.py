@@ -9,13 +9,13 @@ from dataclasses import fields
 import gymnasium as gym
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
 from gymnasium.envs.registration import load_env_creator
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import envs
-from envs.episodes.config import EnvConfig
-from envs.track_env import RESET_OPTIONS
+from bboxtune import envs
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.track_env import RESET_OPTIONS
 
 FIELDS = tuple(f.name for f in fields(EnvConfig)) + ("render_mode",)
 NUMBER = st.one_of(st.integers(-10, 200_000), st.floats(-10.0, 1e5), st.floats(allow_nan=True, allow_infinity=True),
@@ -151,7 +151,7 @@ def _log_pair(low: float, high: float) -> st.SearchStrategy:
 @st.composite
 def valid_config(draw: st.DrawFn) -> dict:
     """Any combination of allowed sim-source values (tracks up to 1,500 frames to keep the test fast)."""
-    from envs.episodes.actions import ACCEPTS
+    from bboxtune.envs.episodes.actions import ACCEPTS
 
     backend = draw(st.sampled_from(sorted(ACCEPTS)))
     tune = draw(st.permutations(ACCEPTS[backend]).flatmap(lambda p: st.integers(1, len(p)).map(lambda n: tuple(p[:n]))))

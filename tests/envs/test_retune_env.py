@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401  (registers the ids)
+from bboxtune import envs  # noqa: F401  (registers the ids)
 from tests.envs.conftest import OTB_ROOT, needs_otb
 
 RETUNE, TUNE = "bboxtune/FilterRetune-v0", "bboxtune/FilterTune-v0"
@@ -103,7 +103,7 @@ def test_offline_view_adds_the_coming_window_and_the_whole_track(backend: str) -
     """retune_view="offline": the causal observation, then FEATURE_NAMES of the coming window's measurements (the
     rule's estimates as pilot) and of the whole track (= FilterTune-v0's observation); zeros for the coming window
     in the terminal observation. The causal part is the default observation, unchanged."""
-    from envs.episodes.features import FEATURE_NAMES, measurement_features
+    from bboxtune.envs.episodes.features import FEATURE_NAMES, measurement_features
 
     kwargs = dict(backend=backend, scenario="nonstationary", track_length=105, window=25)  # a last window of 5 frames
     offline, causal = gym.make(RETUNE, retune_view="offline", **kwargs), gym.make(RETUNE, **kwargs)
@@ -137,7 +137,7 @@ def test_observation_names_match_the_observation(backend: str, view: str) -> Non
     """One distinct name per entry, in the Observation Space table's order: the current action's entries are the
     action itself (the rule's after the warm-up), the progress the share filtered, the whole track's part
     FilterTune-v0's observation."""
-    from envs.episodes.features import FEATURE_NAMES
+    from bboxtune.envs.episodes.features import FEATURE_NAMES
 
     env = gym.make(RETUNE, backend=backend, scenario="nonstationary", track_length=100, window=20, retune_view=view)
     names = env.unwrapped.observation_names
@@ -180,7 +180,7 @@ def test_retune_view_is_checked() -> None:
 
 
 def test_hold_missing_shows_the_last_estimate() -> None:
-    from envs.episodes.scoring import hold_missing
+    from bboxtune.envs.episodes.scoring import hold_missing
 
     est = np.arange(2 * 5 * 4, dtype=float).reshape(2, 5, 4)
     est[0, 0], est[0, 2:4], est[1, :2] = np.nan, np.nan, np.nan

@@ -8,8 +8,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from envs.data.otb import TRACKER_SPLIT, OTBDataset, split
-from envs.episodes.config import MIX_SOURCES, EnvConfig
+from bboxtune.envs.data.otb import TRACKER_SPLIT, OTBDataset, split
+from bboxtune.envs.episodes.config import MIX_SOURCES, EnvConfig
 from tests.envs.conftest import OTB_ROOT, needs_otb
 
 TUNE, RETUNE = "bboxtune/FilterTune-v0", "bboxtune/FilterRetune-v0"
@@ -153,7 +153,7 @@ def test_mix_draws_each_part_with_its_weight(weights: tuple) -> None:
     counts = np.array([sum(source.part_of(seed) == part for seed in range(n)) for part in MIX_SOURCES])
     p = np.array(weights) / sum(weights)
     assert np.all(np.abs(counts - n * p) <= 4 * np.sqrt(n * p * (1 - p)) + 1e-9)  # 4 binomial std, fixed seeds
-    assert set(source.parts) == {part for part, w in zip(MIX_SOURCES, weights) if w > 0}
+    assert set(source.parts) == {part for part, w in zip(MIX_SOURCES, weights, strict=False) if w > 0}
 
 
 @needs_otb

@@ -5,7 +5,7 @@ The action: horizon N = 2 (a = -1), σ_w at the top (+1), σ_v at the bottom (-1
 N = 2 a large ψ makes the position unobservable) and ψ = 0.99 for KF-CMN (+1: the coloured-noise model then
 follows each measurement). KF / UKF reach the tolerance with ``sigma_decades=2.5`` (default 1.5: 5.5 % of the
 box scale on simulated tracks), OFIR with σ_v tuned too and ``sigma_decades=2.5`` (default: 32 %) — the
-documented opt-ins (``envs.tune_env.FilterTuneEnv``, Action Space).
+documented opt-ins (``bboxtune.envs.tune_env.FilterTuneEnv``, Action Space).
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import filters
-from envs.episodes.features import box_scale
+from bboxtune import filters
+from bboxtune.envs.episodes.features import box_scale
 
 TOLERANCE = 1e-3  # max |estimate − y| / box scale over a track (0.05 px on a 50 px box)
 EXACT = 1e-10  # float round-off only

@@ -8,9 +8,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-import envs
-import filters
-from envs.episodes.scoring import reward_label
+from bboxtune import envs, filters
+from bboxtune.envs.episodes.scoring import reward_label
 from tests.envs.conftest import OTB_ROOT, needs_otb
 
 SOURCES = ["sim", pytest.param("otb", marks=needs_otb), pytest.param("otb_tracker", marks=needs_otb)]
@@ -306,9 +305,9 @@ def test_sb3_vector_wrappers() -> None:
 
 
 def test_fused_scores_equal_the_metric_functions() -> None:
-    from envs.data import metrics
-    from envs.data.boxes import cxcywh_to_xywh
-    from envs.episodes.scoring import score_estimates
+    from bboxtune.envs.data import metrics
+    from bboxtune.envs.data.boxes import cxcywh_to_xywh
+    from bboxtune.envs.episodes.scoring import score_estimates
 
     rng = np.random.default_rng(0)
     truth = np.column_stack([rng.uniform(50, 60, (80, 2)), rng.uniform(10, 20, (80, 2))])
@@ -327,7 +326,7 @@ def test_fused_scores_equal_the_metric_functions() -> None:
 
 
 def test_scores_with_one_truth_per_row_equal_separate_calls() -> None:
-    from envs.episodes.scoring import score_estimates
+    from bboxtune.envs.episodes.scoring import score_estimates
 
     rng = np.random.default_rng(3)
     truth = np.column_stack([rng.uniform(50, 60, (3, 60, 2)).reshape(-1, 2), rng.uniform(10, 20, (180, 2))]).reshape(3, 60, 4)
@@ -344,8 +343,8 @@ def test_scores_with_one_truth_per_row_equal_separate_calls() -> None:
 
 @pytest.mark.parametrize("backend", ["ufir_cmn", "oufir", "kf_cmn"])
 def test_run_tracks_equals_each_track_alone(backend: str) -> None:
-    from envs.episodes.scoring import run_positions, run_tracks
-    from envs.data.simulate import ScenarioRanges, simulate
+    from bboxtune.envs.data.simulate import ScenarioRanges, simulate
+    from bboxtune.envs.episodes.scoring import run_positions, run_tracks
 
     rng = np.random.default_rng(2)
     tracks = [simulate(ScenarioRanges(n_frames=(T, T)).sample(rng), rng) for T in (90, 90, 70, 90)]
@@ -360,9 +359,9 @@ def test_run_tracks_equals_each_track_alone(backend: str) -> None:
 
 
 def test_fused_scores_on_threshold_boundaries() -> None:
-    from envs.data import metrics
-    from envs.data.boxes import cxcywh_to_xywh
-    from envs.episodes.scoring import score_estimates
+    from bboxtune.envs.data import metrics
+    from bboxtune.envs.data.boxes import cxcywh_to_xywh
+    from bboxtune.envs.episodes.scoring import score_estimates
 
     truth = np.tile([10.0, 10.0, 4.0, 4.0], (3, 1))
     est = np.stack([truth, truth + [2.0, 0, 0, 0], truth + [4.0 / 3, 0, 0, 0]])  # IoU 1, 1/3, exactly 0.5

@@ -7,8 +7,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs
-from envs.vector import TuneBatch, TuneVectorEnv
+from bboxtune import envs
+from bboxtune.envs.vector import TuneBatch, TuneVectorEnv
 from tests.envs.conftest import OTB_ROOT, needs_otb
 
 TUNE = "bboxtune/FilterTune-v0"
@@ -19,7 +19,7 @@ def _single_steps(kwargs: dict, tracks: list[dict], actions: np.ndarray) -> tupl
     """Observations, rewards and step infos of the single env on the pinned episodes ``tracks``."""
     env = gym.make(TUNE, **kwargs)
     obs, rewards, infos = [], [], []
-    for track, action in zip(tracks, actions):
+    for track, action in zip(tracks, actions, strict=False):
         pins = {k: track[k] for k in ("sequence", "noise_seed", "tracker") if track.get(k) is not None}
         o, _ = env.reset(options=pins)
         _, r, *_, info = env.step(action)

@@ -1,11 +1,11 @@
-"""filters.batch: candidates and per-track parameter sets in few calls, frame units handled in one place."""
+"""bboxtune.filters.batch: candidates and per-track parameter sets in few calls, frame units handled in one place."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-import filters
+from bboxtune import filters
 
 PARAMS = {"psi": np.array([0.0, 0.5, 0.9]), "horizon": np.array([4, 20, 60]), "sigma_w": np.array([1.0, 10.0, 100.0]),
           "sigma_v": np.array([0.5, 2.0, 8.0])}

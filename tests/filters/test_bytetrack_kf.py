@@ -1,4 +1,4 @@
-"""filters.bytetrack_kf: ByteTrack's / DeepSORT's box Kalman filter, batched, against a per-frame reference written
+"""bboxtune.filters.bytetrack_kf: ByteTrack's / DeepSORT's box Kalman filter, batched, against a per-frame reference written
 from the published equations (initiate / predict / update with 8×8 matrices and Cholesky solves, as the original)."""
 
 from __future__ import annotations
@@ -7,10 +7,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-import filters
-import filters.bytetrack_kf
-from filters.base import Carry
-from filters.bytetrack_kf import STD_RANGE
+from bboxtune import filters
+from bboxtune.filters.base import Carry
+from bboxtune.filters.bytetrack_kf import STD_RANGE
 
 TAU = 1 / 30
 PARAMS = ("std_weight_position", "std_weight_velocity", "std_aspect", "std_aspect_rate", "std_aspect_measurement")
@@ -248,7 +247,7 @@ def test_carry_errors() -> None:
     _, carry = flt.run_from(y)
     with pytest.raises(ValueError, match=r"carry.x has shape \(2, 8\); allowed: \(3, 8\)"):
         flt.run_from(boxes(3, 5, 13), carry)
-    with pytest.raises(ValueError, match="allowed: None or a filters.base.Carry"):
+    with pytest.raises(ValueError, match="allowed: None or a bboxtune.filters.base.Carry"):
         flt.run_from(y, {"x": carry.x})
     x = carry.x.copy()
     x[0, 5] = np.nan

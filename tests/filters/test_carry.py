@@ -1,4 +1,4 @@
-"""``Filter.run_from`` / :class:`filters.base.Carry` (kf, kf_cmn, ukf): a run split into pieces equals the
+"""``Filter.run_from`` / :class:`bboxtune.filters.base.Carry` (kf, kf_cmn, ukf): a run split into pieces equals the
 whole run, ``Carry.repeat`` broadcasts one state to candidate parameter sets, a parameter change between
 pieces matches an explicit filterpy loop that switches parameters at that frame, and bad carries are refused."""
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-import filters
-from filters.base import Carry
+from bboxtune import filters
+from bboxtune.filters.base import Carry
 from tests.filters.test_kf import assert_rel, simulate
 from tests.filters.test_kf_cmn import cmn_matrices
 
@@ -50,7 +50,7 @@ def run_in_pieces(f: filters.Filter, y: np.ndarray, cuts: list[int], u: np.ndarr
     """run_from over y[..., a:b, :] for consecutive pieces [0, cuts..., T), carrying the state."""
     parts = []
     bounds = [0, *cuts, y.shape[-2]]
-    for a, b in zip(bounds[:-1], bounds[1:]):
+    for a, b in zip(bounds[:-1], bounds[1:], strict=False):
         states, carry = f.run_from(y[..., a:b, :], carry, u=None if u is None else u[..., a:b, :])
         parts.append(states)
     return np.concatenate(parts, axis=-2), carry
@@ -249,7 +249,7 @@ def test_a_fir_filter_refuses_a_kalman_carry_and_a_kalman_filter_a_history() -> 
     y = np.zeros((20, 1))
     _, carry = filters.make("kf", filters.constant_velocity(TAU)).run_from(y)
     _, history = filters.make("ufir", filters.constant_velocity(TAU), horizon=10).run_from(y)
-    with pytest.raises(TypeError, match="ufir: carry is a Carry; allowed: None or a filters.history.History"):
+    with pytest.raises(TypeError, match="ufir: carry is a Carry; allowed: None or a bboxtune.filters.history.History"):
         filters.make("ufir", filters.constant_velocity(TAU), horizon=10).run_from(y, carry)
     with pytest.raises((TypeError, AttributeError, ValueError)):
         filters.make("kf", filters.constant_velocity(TAU)).run_from(y, history)

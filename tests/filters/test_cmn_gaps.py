@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-import filters
-from filters.base import Carry
+from bboxtune import filters
+from bboxtune.filters.base import Carry
 from tests.filters.test_carry import assert_same, assert_same_carry, run_in_pieces
 from tests.filters.test_kf import assert_rel, simulate
 from tests.filters.test_kf_cmn import P0, X0, cmn_matrices, simulate_cmn, time_correlated

@@ -1,4 +1,4 @@
-"""Every back end at the edges of its documented parameter range (filters.validation): finite output over the
+"""Every back end at the edges of its documented parameter range (bboxtune.filters.validation): finite output over the
 whole range, a ValueError naming the parameter just outside it, empty batches and tracks, chunked batches equal
 to unchunked ones, bounded working memory, and the UKF as accurate as the KF where the uncentred UKF was not."""
 
@@ -12,9 +12,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-import filters
-import filters.base
-from filters.validation import PRIOR_MAX, PSI_MAX, SIGMA_RANGE, TAU_RANGE, VALUE_MAX, VARIANCE_MAX
+from bboxtune import filters
+from bboxtune.filters.validation import PRIOR_MAX, PSI_MAX, SIGMA_RANGE, TAU_RANGE, VALUE_MAX, VARIANCE_MAX
 
 KALMAN = ("kf", "kf_cmn", "ukf")
 WINDOW = ("ofir", "oufir", "fir")
@@ -95,8 +94,8 @@ def test_priors_over_their_range_give_finite_output(name: str, data: st.DataObje
        high=st.floats(-30, 8), angle=st.floats(0, np.pi), y=measurements(M=1))
 def test_ofir_prior_over_its_range_gives_finite_output(tau: float, params: dict, low: float, high: float,
                                                        angle: float, y: np.ndarray) -> None:
-    """OFIR's P0: eigenvalues in frame units within sigma_v² · [1e-30, 1e8] (filters.ofir.PRIOR_LOW,
-    filters.validation.PRIOR_MAX), entries within ±VARIANCE_MAX."""
+    """OFIR's P0: eigenvalues in frame units within sigma_v² · [1e-30, 1e8] (bboxtune.filters.ofir.PRIOR_LOW,
+    bboxtune.filters.validation.PRIOR_MAX), entries within ±VARIANCE_MAX."""
     c, s = math.cos(angle), math.sin(angle)
     rotation = np.array([[c, -s], [s, c]])
     with np.errstate(over="ignore"):

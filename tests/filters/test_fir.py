@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import filters
-from filters.fir import kwon_gain
-from filters.oufir import oufir_gain, oufir_iterative
-from tests.filters.test_oufir import B, F, H, TAU, assert_close_rel, simulate, steady_state_kf
+from bboxtune import filters
+from bboxtune.filters.fir import kwon_gain
+from bboxtune.filters.oufir import oufir_gain, oufir_iterative
+from tests.filters.test_oufir import TAU, B, F, H, assert_close_rel, simulate, steady_state_kf
 
 
 def kwon_literal(L: int, sigma_w: float, sigma_v: float) -> np.ndarray:
@@ -63,7 +63,7 @@ def test_run_equals_iterative_oufir(track: np.ndarray, N: int) -> None:
 
 @pytest.mark.parametrize("delta", [0.0, 0.01, -0.02, 0.5])
 def test_sampling_time_error_keeps_straight_lines_exact(delta: float) -> None:
-    """Seed 004 §III: the truth advances every τ + δ while the filter assumes τ. For constant-velocity motion the
+    """[Mo-FIR] §III: the truth advances every τ + δ while the filter assumes τ. For constant-velocity motion the
     FIR position stays exact (unbiased for every line) and the velocity is scaled by (τ + δ)/τ."""
     t = (TAU + delta) * np.arange(60)
     y = 40.0 + 12.0 * t

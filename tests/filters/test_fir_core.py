@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import filters
-from filters.fir_core import GAINS, FIRFilter, GainCache, check_fir_params, correlate
-from filters.ufir import UFIR, ufir_iterative
-from filters.ufir_cmn import UFIRCMN
+from bboxtune import filters
+from bboxtune.filters.fir_core import GAINS, FIRFilter, GainCache, check_fir_params, correlate
+from bboxtune.filters.ufir import UFIR, ufir_iterative
+from bboxtune.filters.ufir_cmn import UFIRCMN
 
 TAU = 0.05
 MODEL1 = filters.constant_velocity(TAU, ndim=1)

@@ -1,4 +1,4 @@
-"""The FIR family's run_from (filters.history): continuing from the measurement history equals one run over the
+"""The FIR family's run_from (bboxtune.filters.history): continuing from the measurement history equals one run over the
 whole track, with new parameters applying from the first new frame; candidates continue from one history."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import filters
-from filters.history import History
+from bboxtune import filters
+from bboxtune.filters.history import History
 
 FIR = ("ufir", "ufir_cmn", "ofir", "oufir", "fir")
 TAU = 0.05
@@ -62,7 +62,7 @@ def test_candidates_continue_from_one_history() -> None:
 
 
 def test_a_run_continued_inside_a_gap_longer_than_the_horizon_has_no_estimate_until_the_next_measurement() -> None:
-    """Documented limit (filters.history): after a gap longer than the horizon one run holds its last estimate;
+    """Documented limit (bboxtune.filters.history): after a gap longer than the horizon one run holds its last estimate;
     a run continued inside the gap reaches back only max(N) + 1 frames, finds no measurement there and has no
     estimate (NaN) until the gap ends — from then on both are equal."""
     y = _track(B=1)[0]

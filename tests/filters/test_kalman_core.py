@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import filters
-from filters import kalman_core as kc
-from filters.kf_cmn import cmn_tables, differenced_kinds
+from bboxtune import filters
+from bboxtune.filters import kalman_core as kc
+from bboxtune.filters.kf_cmn import cmn_tables, differenced_kinds
 
 
 @pytest.mark.parametrize("psi", [0.0, 0.6, 0.95])

@@ -8,9 +8,9 @@ from filterpy.kalman import KalmanFilter
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import filters
-from filters import kalman_core
-from filters.model import StateSpaceModel
+from bboxtune import filters
+from bboxtune.filters import kalman_core
+from bboxtune.filters.model import StateSpaceModel
 
 TAU = 0.05
 

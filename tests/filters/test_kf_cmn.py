@@ -10,7 +10,7 @@ from filterpy.kalman import KalmanFilter
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import filters
+from bboxtune import filters
 from tests.filters.test_kf import assert_rel, simulate
 
 TAU = 0.05
@@ -158,7 +158,7 @@ def test_batched_equals_separate_runs() -> None:
 @given(
     sigma_w=st.floats(1e-6, 1e6),
     sigma_v=st.floats(1e-6, 1e6),
-    psi=st.floats(0.0, 0.99),  # filters.validation.PSI_MAX
+    psi=st.floats(0.0, 0.99),  # bboxtune.filters.validation.PSI_MAX
     seed=st.integers(0, 2**16),
 )
 def test_finite_input_gives_finite_output(sigma_w: float, sigma_v: float, psi: float, seed: int) -> None:

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import filters
-from filters.ofir import default_prior, ofir_gain, ofir_iterative
-from filters.oufir import oufir_gain
-from tests.filters.test_oufir import B, F, H, TAU, assert_close_rel, simulate, steady_state_kf
+from bboxtune import filters
+from bboxtune.filters.ofir import default_prior, ofir_gain, ofir_iterative
+from bboxtune.filters.oufir import oufir_gain
+from tests.filters.test_oufir import TAU, B, F, H, assert_close_rel, simulate, steady_state_kf
 
 
 @pytest.fixture(scope="module")

@@ -9,9 +9,9 @@ import scipy.linalg as sla
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import filters
-import filters.oufir as oufir
-from filters.oufir import kf_step, oufir_gain, oufir_iterative, window_gls_gain
+import bboxtune.filters.oufir as oufir
+from bboxtune import filters
+from bboxtune.filters.oufir import kf_step, oufir_gain, oufir_iterative, window_gls_gain
 
 TAU = 0.05
 AXIS = filters.constant_velocity(TAU).axis()
@@ -75,7 +75,7 @@ def test_cholesky_and_ml_least_squares_branches_agree(monkeypatch: pytest.Monkey
     chol = [window_gls_gain(F, H, B, valid, r, P) for r in (0.1, 12.5) for P in (None, P_prior)]
     monkeypatch.setattr(oufir, "COND_MAX", 0.0)
     ml = [window_gls_gain(F, H, B, valid, r, P) for r in (0.1, 12.5) for P in (None, P_prior)]
-    for (Wy_c, Wx_c), (Wy_m, Wx_m) in zip(chol, ml):
+    for (Wy_c, Wx_c), (Wy_m, Wx_m) in zip(chol, ml, strict=False):
         np.testing.assert_allclose(Wy_c, Wy_m, atol=1e-10 * np.abs(Wy_c).max())
         np.testing.assert_allclose(Wx_c, Wx_m, atol=1e-10 * max(np.abs(Wx_c).max(), 1.0))
 

@@ -1,4 +1,4 @@
-"""filters.sort_kf: SORT's box Kalman filter, batched, against filterpy's ``KalmanFilter(dim_x=7, dim_z=4)`` configured
+"""bboxtune.filters.sort_kf: SORT's box Kalman filter, batched, against filterpy's ``KalmanFilter(dim_x=7, dim_z=4)`` configured
 as SORT's ``KalmanBoxTracker`` configures it ([Bewley-SORT]; SORT itself runs on filterpy)."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-import filters
-from filters.base import Carry
+from bboxtune import filters
+from bboxtune.filters.base import Carry
 
 TAU = 1 / 25
 

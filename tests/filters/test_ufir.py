@@ -8,10 +8,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import filters
-from filters.horizon import rule_horizon
-from filters.lag_moments import lag_moments, lag_moments_real, lag_polynomial
-from filters.ufir import UFIR, back_projected_rows, ramp_gain, ufir_iterative
+from bboxtune import filters
+from bboxtune.filters.horizon import rule_horizon
+from bboxtune.filters.lag_moments import lag_moments, lag_moments_real, lag_polynomial
+from bboxtune.filters.ufir import UFIR, back_projected_rows, ramp_gain, ufir_iterative
 
 TAU = 0.05
 MODEL1 = filters.constant_velocity(TAU, ndim=1)

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import filters
-from filters.ufir import back_projected_rows, ufir_iterative
-from filters.ufir_cmn import UFIRCMN
+from bboxtune import filters
+from bboxtune.filters.ufir import back_projected_rows, ufir_iterative
+from bboxtune.filters.ufir_cmn import UFIRCMN
 from tests.filters.test_ufir import assert_close
 
 TAU = 0.05
@@ -73,7 +73,7 @@ def test_padded_batch_of_full_gains_equals_each_window_alone() -> None:
     f = filters.make("ufir_cmn", MODEL1, psi=0.5, horizon=10)
     psi, horizon = np.array([0.0, 0.4, 0.93, 0.7]), np.array([2, 9, 40, 40])
     batch = f.clean_gains({"psi": psi, "horizon": horizon}, 41)
-    for p, N, W in zip(psi, horizon, batch):
+    for p, N, W in zip(psi, horizon, batch, strict=False):
         alone = f.window_gains(np.ones((1, N + 1), bool), {"psi": np.array([p]), "horizon": np.array([N])})[0]
         np.testing.assert_allclose(W[:, 41 - (N + 1):], alone, rtol=1e-11, atol=1e-12 * np.abs(alone).max())
         assert not W[:, : 41 - (N + 1)].any()  # zero before a shorter window
@@ -113,7 +113,7 @@ def test_rank_deficient_window_falls_back_to_the_latest_measurement() -> None:
 
 @settings(max_examples=25, deadline=None)
 @given(
-    psi=st.floats(0.0, 0.99),  # filters.validation.PSI_MAX
+    psi=st.floats(0.0, 0.99),  # bboxtune.filters.validation.PSI_MAX
     sigma_w=st.floats(1e-6, 1e6),
     sigma_v=st.floats(1e-6, 1e6),
     N=st.one_of(st.none(), st.integers(2, 10_000)),

@@ -9,7 +9,7 @@ from filterpy.kalman import KalmanFilter, MerweScaledSigmaPoints, UnscentedKalma
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import filters
+from bboxtune import filters
 from tests.filters.test_kf import assert_rel, simulate
 
 TAU = 0.05
@@ -186,8 +186,8 @@ def test_bad_camera_input() -> None:
 def test_one_row_recursion_equals_batched() -> None:
     """The Python-float recursion of a single row (sigma_gain_recursion, G = 1) equals the numpy one to rounding
     (measured 2e-12 relative in the first frames, where the diffuse velocity prior cancels)."""
-    from filters import kalman_core as kc
-    from filters.ukf import sigma_gain_recursion
+    from bboxtune.filters import kalman_core as kc
+    from bboxtune.filters.ukf import sigma_gain_recursion
 
     axis = filters.constant_velocity(TAU).axis()
     finite = np.random.default_rng(4).random((2, 300)) > 0.1
@@ -206,8 +206,8 @@ def test_one_row_recursion_equals_batched() -> None:
 def test_gains_stop_at_steady_state_on_long_tracks() -> None:
     """Without gaps the sigma-point gain recursion stops once the covariance repeats (a few hundred frames), so a
     track of 200,000 frames costs affine maps only — and equals the KF there."""
-    from filters import kalman_core as kc
-    from filters.ukf import sigma_gain_recursion
+    from bboxtune.filters import kalman_core as kc
+    from bboxtune.filters.ukf import sigma_gain_recursion
 
     axis = filters.constant_velocity(TAU).axis()
     kinds = kc.frame_kinds(np.ones((1, 200_000), bool), prior=False)

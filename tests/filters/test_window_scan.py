@@ -1,4 +1,4 @@
-"""The associative composition of per-frame Kalman elements (filters.window_scan) that OUFIR, OFIR and Kwon's FIR
+"""The associative composition of per-frame Kalman elements (bboxtune.filters.window_scan) that OUFIR, OFIR and Kwon's FIR
 use for windows with missing samples: the operator is associative, its rank-one single-frame forms equal the
 general one, and the windowed estimates equal a KF run over every window separately (the previous method)."""
 
@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import filters
-from filters import window_scan as ws
-from filters.oufir import KalmanWindowFIR
+from bboxtune import filters
+from bboxtune.filters import window_scan as ws
+from bboxtune.filters.oufir import KalmanWindowFIR
 
 
 def frame_model(n: int, seed: int, missing: float = 0.3) -> ws.FrameModel:

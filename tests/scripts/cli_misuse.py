@@ -19,7 +19,7 @@ Adding cases for a script (in its own test module, or in ``CASES`` of ``test_cli
 
     @pytest.mark.parametrize("case", CASES, ids=str)
     def test_misuse(case, misuse_paths, capsys):
-        check_misuse(compare.main, case, misuse_paths, capsys)  # from agents.commands import compare
+        check_misuse(compare.main, case, misuse_paths, capsys)  # from bboxtune.agents.commands import compare
 
 ``misuse(*args)`` expects the last ``--flag`` of ``args`` in the error line; pass ``mentions=`` otherwise.
 """

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from agents.commands import bench_env, bench_filters, bench_train
+from bboxtune.agents.commands import bench_env, bench_filters, bench_train
 
 from .tiny_run import REPO
 

@@ -12,12 +12,10 @@ import numpy as np
 import pytest
 import yaml
 
-from agents.commands import compare as compare_command
-from agents.tune import Tuner
-from envs.data.boxes import cxcywh_to_xywh
-from envs.episodes.actions import STOCK
-
-from .tiny_run import train  # noqa: F401  (fixture)
+from bboxtune.agents.commands import compare as compare_command
+from bboxtune.agents.smoothing.tuner import Tuner
+from bboxtune.envs.data.boxes import cxcywh_to_xywh
+from bboxtune.envs.episodes.actions import STOCK
 
 RUN = ["--backend", "bytetrack_kf", "--timesteps", "2000", "--n-envs", "32", "--hyperparams", "n_steps:64",
        "batch_size:512", "n_epochs:2", "--env-kwargs", "track_length:64", "--eval-freq", "1000", "--eval-episodes", "4",

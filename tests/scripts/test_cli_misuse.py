@@ -9,7 +9,7 @@ from types import ModuleType
 
 import pytest
 
-from .cli_misuse import check_misuse, misuse, misuse_paths, run_script  # noqa: F401  (fixture)
+from .cli_misuse import check_misuse, misuse, run_script
 
 SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
 COUNT = ("0", "-1", "abc", "1_0", "2.5")  # not integers >= 1 ("1_0" is 10 to int())
@@ -37,8 +37,8 @@ OTB_ROOT_CASES = [
 ]
 CASES: dict[str, list] = {
     "reproduce": REPRODUCE_COMMON + OTB_ROOT_CASES,
-    "reproduce_seed000": REPRODUCE_COMMON + [misuse("--out", "{out}", "--otb-root", "{dir}")],
-    "reproduce_seed004": REPRODUCE_COMMON + [misuse("--out", "{out}", "--otb-root", "{dir}")],
+    "reproduce_shmaliy_cmn": REPRODUCE_COMMON + [misuse("--out", "{out}", "--otb-root", "{dir}")],
+    "reproduce_mo_fir": REPRODUCE_COMMON + [misuse("--out", "{out}", "--otb-root", "{dir}")],
     "reproduce_otb": REPRODUCE_COMMON + OTB_ROOT_CASES + [misuse("--out", "{out}", "--quick", mentions="--otb-root")],
     "bench_env": [
         *[misuse(flag, v) for flag in ("--episodes", "--candidates", "--calls", "--repeat") for v in COUNT],
@@ -77,12 +77,12 @@ CASES: dict[str, list] = {
     ],
 }
 PARAMS = [pytest.param(name, case, id=f"{name}: {case}") for name, cases in CASES.items() for case in cases]
-HELP = sorted(p.stem for p in SCRIPTS.glob("*.py"))  # every script is a command: agents.commands.<name>
+HELP = sorted(p.stem for p in SCRIPTS.glob("*.py"))  # every script is a command: bboxtune.agents.commands.<name>
 
 
 def command(name: str) -> ModuleType:
     """The command module of ``scripts/<name>.py``."""
-    return importlib.import_module(f"agents.commands.{name}")
+    return importlib.import_module(f"bboxtune.agents.commands.{name}")
 
 
 @pytest.mark.parametrize(("name", "case"), PARAMS)
@@ -106,9 +106,9 @@ def test_every_script_is_covered():
 
 
 def test_reproduce_part_help_from_the_command_line(misuse_paths):
-    """The issue's case: ``reproduce_seed000.py --help`` printed nothing (the other parts are wired the same)."""
-    done = run_script("reproduce_seed000", "--help", cwd=misuse_paths.work)
-    assert done.returncode == 0 and done.stdout.startswith("usage: reproduce_seed000.py [-h] --out DIR"), done.stderr
+    """The issue's case: ``reproduce_shmaliy_cmn.py --help`` printed nothing (the other parts are wired the same)."""
+    done = run_script("reproduce_shmaliy_cmn", "--help", cwd=misuse_paths.work)
+    assert done.returncode == 0 and done.stdout.startswith("usage: reproduce_shmaliy_cmn.py [-h] --out DIR"), done.stderr
 
 
 @pytest.mark.parametrize(("name", "args"), [

@@ -14,8 +14,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from .cli_misuse import MisusePaths, check_misuse, misuse, misuse_paths, run_script  # noqa: F401  (fixture)
-from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
+from .cli_misuse import MisusePaths, check_misuse, misuse, run_script
 
 COUNT = ("0", "-1", "abc", "1_0", "2.5")  # not integers >= 1 ("1_0" is 10 to int())
 
@@ -104,7 +103,7 @@ def run_paths(misuse_paths: MisusePaths, tiny_run: Path) -> MisusePaths:
 
 @pytest.mark.parametrize(("name", "case"), PARAMS)
 def test_misuse_exits_2_with_one_line_and_writes_nothing(name, case, run_paths, capsys, monkeypatch):
-    check_misuse(importlib.import_module(f"agents.commands.{name}").main, case, run_paths, capsys, monkeypatch)
+    check_misuse(importlib.import_module(f"bboxtune.agents.commands.{name}").main, case, run_paths, capsys, monkeypatch)
 
 
 def test_misuse_from_the_command_line(misuse_paths: MisusePaths) -> None:

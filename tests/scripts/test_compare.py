@@ -10,11 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.commands import compare as compare_command
-from agents.gate_file import read_gate
-from agents.splits import eval_seeds, split_of, split_seeds
-
-from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
+from bboxtune.agents.commands import compare as compare_command
+from bboxtune.agents.policies.gate_file import read_gate
+from bboxtune.agents.splits import eval_seeds, split_of, split_seeds
 
 REQUIRED = ("method", "episode", "sequence", "tracker", "rmse", "success_auc", "precision20")
 METHODS = {"raw", "bytetrack_kf", "sort_kf", "rule", "rule_est_sigma", "rule_true_sigma", "oracle", "oracle_auc", "global", "amortised", "adaptive",
@@ -62,7 +60,7 @@ def test_results_csv(compared: Path) -> None:
 def test_raw_is_the_unfiltered_measurement(compared: Path, tiny_run: Path) -> None:
     import gymnasium as gym
 
-    from envs.episodes.scoring import score_estimates
+    from bboxtune.envs.episodes.scoring import score_estimates
 
     env = gym.make("bboxtune/FilterTune-v0", track_length=100, split="test")
     table = rows(compared)
@@ -126,13 +124,13 @@ def test_otb_episodes_are_every_sequence_times_seeds_with_sequence_clusters(tiny
 def test_otb_tracker_episodes_are_every_sequence_times_every_tracker_with_output(tiny_run: Path, tmp_path: Path) -> None:
     out = compare(tiny_run, tmp_path / "trk", "--env-kwargs", "source=otb_tracker", "trackers=[MEEM, SiamFC]")
     table = rows(out)
-    from envs.data.otb import OTBDataset, split
+    from bboxtune.envs.data.otb import OTBDataset, split
 
     data = OTBDataset(OTB)
     test = split(data.names)["test"]
     meem = set(data.tracker_sequences("MEEM"))  # MEEM lacks some sequences: clusters of 1 and 2 episodes
     expected = [(s, t) for s in test for t in ("MEEM", "SiamFC") if t == "SiamFC" or s in meem]
-    assert list(zip(of(table, "rule", "sequence"), of(table, "rule", "tracker"))) == expected
+    assert list(zip(of(table, "rule", "sequence"), of(table, "rule", "tracker"), strict=False)) == expected
     assert len(expected) < 2 * len(test)
     text = (out / "summary.md").read_text()
     assert f"resamples of sequences ({len(test)} clusters; every drawn sequence brings all its episodes, " \
@@ -150,7 +148,7 @@ def test_mix_episodes_are_drawn_and_cluster_by_sequence_where_they_have_one(tiny
     table = rows(out)
     sources, sequences = of(table, "rule", "source"), of(table, "rule", "sequence")
     assert len(sources) == 8 and {"sim", "otb"} <= set(sources)
-    assert all((s == "") == (src == "sim") for s, src in zip(sequences, sources))
+    assert all((s == "") == (src == "sim") for s, src in zip(sequences, sources, strict=False))
     lone, named = sources.count("sim"), len({s for s in sequences if s})
     assert f"({lone + named} clusters: {named} sequences, each with all its episodes, and {lone} episodes without a " \
            "sequence)" in (out / "summary.md").read_text()

@@ -10,10 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from agents.commands import compare
+from bboxtune.agents.commands import compare
 
-from .cli_misuse import MisusePaths, check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
-from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
+from .cli_misuse import MisusePaths, check_misuse, misuse
 
 OTB = os.environ.get("OTB_ROOT", "")
 WITH_OTB = {"OTB_ROOT": OTB}

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from agents.commands import compare
+from bboxtune.agents.commands import compare
 
-from .tiny_run import TINY, tiny_run, train  # noqa: F401  (fixtures)
+from .tiny_run import TINY
 
 METHODS = {"raw", "rule", "oneshot_oracle", "oneshot_learned", "oneshot_learned_online", "window_oracle", "adaptive", "imm",
            "ppo_s0", "ppo_s1", "ppo_best_s0", "ppo_best_s1", "window_amortised_s0", "window_amortised_s1",

@@ -1,4 +1,4 @@
-"""scripts/mot_eval.py: the MOT15 identity table (agents.commands.mot_eval) and its refusals."""
+"""scripts/mot_eval.py: the MOT15 identity table (bboxtune.agents.commands.mot_eval) and its refusals."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.commands import mot_eval
+from bboxtune.agents.commands import mot_eval
 
 MOT_ROOT = os.environ.get("MOT_ROOT")
 needs_mot = pytest.mark.skipif(not MOT_ROOT, reason="MOT_ROOT is unset: the MOT15 table needs the MOT15 data "

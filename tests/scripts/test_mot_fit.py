@@ -1,4 +1,4 @@
-"""scripts/mot_fit.py: the simulator's detection noise fitted to MOT15 (agents.commands.mot_fit), its outputs and
+"""scripts/mot_fit.py: the simulator's detection noise fitted to MOT15 (bboxtune.agents.commands.mot_fit), its outputs and
 refusals; the committed docs/results/mot15_noise fit is what the command computes."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from agents.cli import key_values
-from agents.commands import mot_fit
-from envs.episodes.config import EnvConfig
+from bboxtune.agents.cli import key_values
+from bboxtune.agents.commands import mot_fit
+from bboxtune.envs.episodes.config import EnvConfig
 
-from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
+from .cli_misuse import check_misuse, misuse
 
 REPO = Path(__file__).resolve().parents[2]
 MOT_ROOT = os.environ.get("MOT_ROOT")

@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.commands import otb_eval
-from envs.data.metrics import score_sequences
-from envs.data.otb import OTBDataset
+from bboxtune.agents.commands import otb_eval
+from bboxtune.envs.data.metrics import score_sequences
+from bboxtune.envs.data.otb import OTBDataset
 
-from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
+from .cli_misuse import check_misuse, misuse
 
 SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "otb_eval.py"
 OTB_ROOT = os.environ.get("OTB_ROOT")
@@ -131,14 +131,14 @@ def got10k_scores(pred: np.ndarray, gt: np.ndarray) -> tuple[float, float]:
 
 @needs_otb
 def test_differences_from_got10k_conventions_are_as_documented():
-    """envs.data.metrics vs got10k on every tracker and sequence: equal where neither convention applies (no missing
+    """bboxtune.envs.data.metrics vs got10k on every tracker and sequence: equal where neither convention applies (no missing
     ground truth, frame-1 box = ground truth), else within 1/T; at most 1/472 over OTB-100 (Twinnings)."""
     dataset, worst = OTBDataset(OTB_ROOT), 0.0
     for tracker in dataset.trackers:
         names = dataset.tracker_sequences(tracker)
         preds, gts = [dataset.tracker_boxes(tracker, n) for n in names], [dataset.groundtruth(n) for n in names]
         ours = score_sequences(preds, gts)
-        for i, (pred, gt) in enumerate(zip(preds, gts)):
+        for i, (pred, gt) in enumerate(zip(preds, gts, strict=False)):
             diff = np.abs(np.subtract(got10k_scores(pred, gt), (ours.success_auc[i], ours.precision20[i])))
             same = not np.isnan(gt).any() and np.array_equal(pred[0], gt[0])
             assert diff.max() <= (1e-12 if same else 1 / len(gt) + 1e-12), (tracker, names[i], diff)

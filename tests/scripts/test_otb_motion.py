@@ -8,9 +8,8 @@ from dataclasses import asdict
 
 import pytest
 
-from agents.commands import otb_motion
-from envs.data.sim_motion import OTB_MOTION
-
+from bboxtune.agents.commands import otb_motion
+from bboxtune.envs.data.sim_motion import OTB_MOTION
 
 OTB_ROOT = os.environ.get("OTB_ROOT")
 needs_otb = pytest.mark.skipif(not OTB_ROOT, reason="OTB_ROOT is unset (CI: OTB_ROOT=../shared/data/otb)")

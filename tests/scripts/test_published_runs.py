@@ -1,9 +1,9 @@
-"""The README's headline rows come from the runs committed under docs/results/<backend>/run/.
+"""The simulated results rows (docs/results-sim.md) come from the runs committed under docs/results/<backend>/run/.
 
 The fast tests load each committed run without pickles and check its spaces; the slow test re-runs
 ``scripts/compare.py --model docs/results/<backend>/run --episodes 500`` and checks that the tables of its
 summary.md equal the published docs/results/<backend>/summary.md (less the rows of methods added since: raw,
-oracle_auc) and that every number of the README's rows for that back end is in the new summary (a few minutes
+oracle_auc) and that every number of the page's rows for that back end is in the new summary (a few minutes
 per back end on 2 cores)."""
 
 from __future__ import annotations
@@ -13,13 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from agents.commands import compare
-from agents.runs import SB3Policy, load_config, make_env
-
+from bboxtune.agents.commands import compare
+from bboxtune.agents.training.runs import SB3Policy, load_config, make_env
 
 ROOT = Path(__file__).resolve().parents[2]
 BACKENDS = ("ufir_cmn", "kf_cmn")
-# README row label (start of the second column) -> method name in summary.md
+# results row label (start of the second column) -> method name in summary.md
 LABELS = {"rule with σ estimated": "rule_est_sigma", "rule_est_sigma": "rule_est_sigma", "rule with true": "rule_true_sigma",
           "rule": "rule", "global": "global", "adaptive": "adaptive", "amortised": "amortised", "**PPO": "ppo",
           "oracle": "oracle"}
@@ -53,7 +52,7 @@ def _tables(summary: str) -> list[str]:
 
 def _readme_rows(backend: str) -> list[tuple[str, list[str]]]:
     rows = []
-    for line in (ROOT / "README.md").read_text().splitlines():
+    for line in (ROOT / "docs" / "results-sim.md").read_text().splitlines():
         cells = [c.strip() for c in line.strip("|").split("|")]
         if len(cells) == 8 and cells[0] == backend:
             method = next(m for label, m in LABELS.items() if cells[1].startswith(label))
@@ -77,11 +76,11 @@ def test_readme_rows_are_reproduced_from_the_committed_run(backend: str, tmp_pat
                 continue
             value = re.sub(r"\s", " ", number).replace("−", "-")
             found = [line for name, line in rows if name == method and _numbers_in(value, line)]
-            assert found, f"README {backend} {method}: {number!r} not in the new summary.md"
+            assert found, f"docs/results-sim.md {backend} {method}: {number!r} not in the new summary.md"
 
 
 def _numbers_in(value: str, line: str) -> bool:
-    """Every number of ``value`` (README rounding) is, rounded alike, among the numbers of ``line``."""
+    """Every number of ``value`` (the page's rounding) is, rounded alike, among the numbers of ``line``."""
     table = re.findall(r"[-+]?[0-9]+\.[0-9]+", line)
     for number in re.findall(r"[-+]?[0-9]+\.[0-9]+", value):
         digits = len(number.split(".")[1])

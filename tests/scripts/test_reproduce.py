@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from agents.commands import reproduce, reproduce_seed004
+from bboxtune.agents.commands import reproduce, reproduce_mo_fir
 
 FIGURES = ("seed000_fig2a.png", "seed000_fig2b.png", "seed000_nopt.png", "seed004_table1.png")
 
@@ -66,15 +66,15 @@ def test_tables_have_expected_rows_with_finite_numbers(quick_run):
 
 
 def test_a_part_alone_gives_the_numbers_of_the_full_run(quick_run, tmp_path):
-    """reproduce_seed004.py = the [Mo-FIR] part of reproduce.py: same Table I rows for the same seed, its own
+    """reproduce_mo_fir.py = the [Mo-FIR] part of reproduce.py: same Table I rows for the same seed, its own
     markdown file, and the files already in --out that it does not write are left alone."""
     (tmp_path / "keep.txt").write_text("mine")
-    assert reproduce_seed004.main(["--out", str(tmp_path), "--quick", "--seed", "3"]) == 0
-    part = (tmp_path / "reproduction_seed004.md").read_text()
-    assert "python scripts/reproduce_seed004.py --out" in part and "[Shmaliy-CMN] Fig. 2" not in part
+    assert reproduce_mo_fir.main(["--out", str(tmp_path), "--quick", "--seed", "3"]) == 0
+    part = (tmp_path / "reproduction_mo_fir.md").read_text()
+    assert "python scripts/reproduce_mo_fir.py --out" in part and "[Shmaliy-CMN] Fig. 2" not in part
     for label in ("Kalman filter", "Kwon FIR (N = 24)"):
         assert _table_rows(part, label) == _table_rows(quick_run[1], label)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt", "reproduction_seed004.md", "seed004_table1.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt", "reproduction_mo_fir.md", "seed004_table1.png"]
     assert (tmp_path / "keep.txt").read_text() == "mine"
 
 

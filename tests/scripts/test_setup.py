@@ -76,7 +76,7 @@ def test_sourcing_runs_nothing(tmp_path: Path) -> None:
 def test_running_installs_torch_then_the_package_then_checks_the_build(tmp_path: Path) -> None:
     done, calls = _bash('bash "$SETUP"', tmp_path, FAKE_FAIL="torch==2.13.0+cpu")
     assert done.returncode == 0, done.stderr
-    assert calls == [PRIMARY, FALLBACK, "-m pip install -q -e .[test]", "-"]  # "-": the check reads stdin
+    assert calls == [PRIMARY, FALLBACK, "-m pip install -q -e .[dev]", "-"]  # "-": the check reads stdin
 
 
 @pytest.mark.parametrize("cuda, hip, ok", [(None, None, True), ("12.8", None, False), (None, "6.2", False)])

@@ -10,14 +10,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents import pretrained
-from agents.commands import otb_eval, smooth as smooth_script
-from agents.gate_file import GATE_FILE, Gate, LinearGain, write_gate
-from agents.tune import Tuner, load_pretrained
-from envs.data.otb import OTBDataset
-from envs.data.otb_io import read_boxes
+from bboxtune.agents.commands import otb_eval
+from bboxtune.agents.commands import smooth as smooth_script
+from bboxtune.agents.policies.gate_file import GATE_FILE, Gate, LinearGain, write_gate
+from bboxtune.agents.smoothing import pretrained
+from bboxtune.agents.smoothing.tuner import Tuner, load_pretrained
+from bboxtune.envs.data.otb import OTBDataset
+from bboxtune.envs.data.otb_io import read_boxes
 
-from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
+from .cli_misuse import check_misuse, misuse
 from .tiny_run import REPO
 
 TAU = "0.04"
@@ -154,7 +155,7 @@ def test_otb_root_scores_raw_and_smoothed_with_otb_evals_scorer(tmp_path, capsys
     shutil.copytree(out, tmp_path / "trackers" / "smoothed", ignore=shutil.ignore_patterns("*.csv"))
     dataset = OTBDataset(tmp_path / "otb", trackers_root=tmp_path / "trackers")
     expected = otb_eval.evaluate(dataset, ["SiamX", "smoothed"])
-    for row, key in zip(scores[1:], ("SiamX", "smoothed")):
+    for row, key in zip(scores[1:], ("SiamX", "smoothed"), strict=False):
         assert int(row[1]) == expected[key]["n_sequences"] == 3
         assert float(row[2]) == pytest.approx(expected[key]["success_auc"], abs=1e-6)
         assert float(row[3]) == pytest.approx(expected[key]["precision20"], abs=1e-6)

@@ -18,17 +18,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import agents
-from agents import pretrained
-from agents.commands import smooth as smooth_script
-from agents.gate_file import Gate, LinearGain, write_gate
-from agents.mot_smooth import FPS_RANGE, read_seqinfo_fps
-from agents.tune import load_pretrained
-from envs.data.mot import match_identities
-from envs.data.mot_io import read_detections, read_ground_truth, read_results
-from envs.data.number_grammar import parse_float
+from bboxtune import agents
+from bboxtune.agents.commands import smooth as smooth_script
+from bboxtune.agents.policies.gate_file import Gate, LinearGain, write_gate
+from bboxtune.agents.smoothing import pretrained
+from bboxtune.agents.smoothing.mot_smooth import FPS_RANGE, read_seqinfo_fps
+from bboxtune.agents.smoothing.tuner import load_pretrained
+from bboxtune.envs.data.mot import match_identities
+from bboxtune.envs.data.mot_io import read_detections, read_ground_truth, read_results
+from bboxtune.envs.data.number_grammar import parse_float
 
-from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
+from .cli_misuse import check_misuse, misuse
 
 TUNER = "otb_kf_cmn"  # small, no gate
 MOT_ROOT = os.environ.get("MOT_ROOT")
@@ -352,7 +352,7 @@ def test_misuse(case, mot_inputs, misuse_paths, capsys, monkeypatch):
 
 
 # --- fuzz: --fps and seqinfo.ini ---------------------------------------------------------------------------------
-DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")  # envs.data.number_grammar's number, ASCII digits
+DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")  # bboxtune.envs.data.number_grammar's number, ASCII digits
 
 
 @settings(max_examples=300, deadline=timedelta(seconds=5))  # the deadline only catches a (near-)hang
@@ -430,8 +430,8 @@ def test_seqinfo_frame_rate_parses_as_the_reference_or_names_the_file(tmp_path_f
 @pytest.mark.parametrize("peer", ["bytetrack_kf", "sort_kf"])
 def test_stock_filter_in_the_tuners_place(tmp_path: Path, peer: str) -> None:
     """--filter: the published filter smooths every track (nothing left alone, no parameters chosen)."""
-    from agents.commands import smooth as smooth_command
-    from agents.stock_filter import StockFilter
+    from bboxtune.agents.commands import smooth as smooth_command
+    from bboxtune.agents.smoothing.stock_filter import StockFilter
 
     rows = [f"{f},1,{100 + 2 * f},50,30,60,0.9,-1,-1,-1" for f in range(1, 21) if f not in (8, 9, 10)]
     results = tmp_path / "trk.txt"
@@ -451,7 +451,7 @@ def test_stock_filter_in_the_tuners_place(tmp_path: Path, peer: str) -> None:
 
 
 def test_stock_filter_refuses_a_gate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from agents.commands import smooth as smooth_command
+    from bboxtune.agents.commands import smooth as smooth_command
 
     (tmp_path / "trk.txt").write_text("1,1,10,10,5,5,1,-1,-1,-1\n")
     with pytest.raises(SystemExit):

@@ -1,15 +1,18 @@
-"""scripts/sweep.py (agents/sweep.py): the grid, the aggregate, and a two-trial smoke sweep on a local Ray."""
+"""scripts/sweep.py (agents/training/sweep.py): the grid, the aggregate, and a two-trial smoke sweep on a local Ray."""
 
 from __future__ import annotations
 
 import csv
+import shutil
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from agents.commands import sweep as sweep_command
-from agents.run_files import RunError
-from agents.sweep import SweepSpec, aggregate, trial_commands, write_csv
+from bboxtune.agents.commands import sweep as sweep_command
+from bboxtune.agents.training.run_files import RunError
+from bboxtune.agents.training.sweep import SweepSpec, aggregate, trial_commands, write_csv
 
 
 def test_the_grid_is_the_product_of_its_axes() -> None:
@@ -49,7 +52,17 @@ def test_the_aggregate_groups_seeds_of_one_setting(tmp_path: Path) -> None:
         aggregate(tmp_path / "empty")
 
 
-def test_smoke_sweep_runs_two_trials_and_aggregates_them(tmp_path: Path, capsys) -> None:
+@pytest.fixture
+def ray_temp(monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """Ray's session folder, removed afterwards. Not under pytest's temp folder: Ray's socket paths there would pass
+    the 107-byte limit of AF_UNIX."""
+    folder = Path(tempfile.mkdtemp(prefix="bbt-ray-", dir="/tmp"))
+    monkeypatch.setenv("RAY_TMPDIR", str(folder))
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_smoke_sweep_runs_two_trials_and_aggregates_them(tmp_path: Path, capsys, ray_temp: Path) -> None:
     out = sweep_command.run(["--out", str(tmp_path / "sweep"), "--smoke", "--cpus", "2"])
     for seed in (0, 1):
         trial = out / "trials" / f"ppo_ufir_cmn_sim_s{seed}"

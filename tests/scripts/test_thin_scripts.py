@@ -1,4 +1,4 @@
-"""Every script in scripts/ is a thin command line: its docstring, ``from agents.commands.<name> import main`` and
+"""Every script in scripts/ is a thin command line: its docstring, ``from bboxtune.agents.commands.<name> import main`` and
 the ``__main__`` guard, with no ``sys.path`` edits; every ``[project.scripts]`` entry point resolves to a ``main``."""
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def test_script_is_docstring_import_and_main_guard(script: Path) -> None:
     tree = ast.parse(script.read_text())
     doc, imported, guard = tree.body
     assert isinstance(doc, ast.Expr) and f"scripts/{script.name}" in ast.get_docstring(tree)  # its usage text
-    assert isinstance(imported, ast.ImportFrom) and imported.module == f"agents.commands.{script.stem}"
+    assert isinstance(imported, ast.ImportFrom) and imported.module == f"bboxtune.agents.commands.{script.stem}"
     assert [(a.name, a.asname) for a in imported.names] == [("main", None)]
     assert isinstance(guard, ast.If) and ast.unparse(guard) == "if __name__ == '__main__':\n    raise SystemExit(main())"
 

@@ -17,10 +17,10 @@ import pytest
 import torch
 import yaml
 
-from agents.checkpoints import CHECKPOINTS, LATEST
-from agents.runs import LOCK, RunLock, SB3Policy
+from bboxtune.agents.training.checkpoints import CHECKPOINTS, LATEST
+from bboxtune.agents.training.runs import LOCK, RunLock, SB3Policy
 
-from .tiny_run import REPO, TINY, tiny_run, train  # noqa: F401  (fixtures)
+from .tiny_run import REPO, TINY
 
 RUN_FILES = ("model.zip", "vecnormalize.json", "best_model.zip", "best_vecnormalize.json", "config.yml", "command.txt",
              "evaluations.npz", "eval_curve.csv", "train_log.csv", "learning_curve.png", LOCK)
@@ -157,7 +157,7 @@ def test_a_run_stopped_before_its_first_checkpoint_resumes_from_zero(train: Modu
     train.run(["--resume", str(run)])
     assert steps(run) == 64 and (run / CHECKPOINTS / LATEST).read_text().strip() == "ckpt_000000000064"
     a, b = SB3Policy.load(tiny_run).model, SB3Policy.load(run).model  # the same run as an uninterrupted one
-    assert all(torch.equal(p, q) for p, q in zip(a.policy.state_dict().values(), b.policy.state_dict().values()))
+    assert all(torch.equal(p, q) for p, q in zip(a.policy.state_dict().values(), b.policy.state_dict().values(), strict=False))
 
 
 def test_a_running_run_is_locked(train: ModuleType, tiny_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -167,7 +167,7 @@ def test_a_running_run_is_locked(train: ModuleType, tiny_run: Path, tmp_path: Pa
         line = error_line(lambda: train.run(["--resume", str(run), "--timesteps", "96"]), capsys)
         assert f"{run} is in use by another train.py (pid {os.getpid()})" in line
     assert steps(run) == 64  # nothing was trained or written
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from agents.runs import RunLock; "
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from bboxtune.agents.training.runs import RunLock; "
                                "RunLock(sys.argv[1]).acquire(); print('locked', flush=True); time.sleep(60)", str(run)],
                               cwd=REPO, stdout=subprocess.PIPE, text=True)
     try:
@@ -200,7 +200,7 @@ def test_same_seed_same_result(train: ModuleType, tiny_run: Path, tmp_path: Path
     assert "held at their training value wherever the tuner is applied): ppo: frac_missing, log_n_frames" in \
         capsys.readouterr().out
     a, b = SB3Policy.load(tiny_run).model, SB3Policy.load(again).model
-    for (name, p), (_, q) in zip(a.policy.state_dict().items(), b.policy.state_dict().items()):
+    for (name, p), (_, q) in zip(a.policy.state_dict().items(), b.policy.state_dict().items(), strict=False):
         assert torch.equal(p, q), name
     assert (tiny_run / "train_log.csv").read_text() == (again / "train_log.csv").read_text()
 
@@ -226,8 +226,20 @@ def test_tensorboard_without_the_package_fails_clearly(train: ModuleType, tmp_pa
     (["--source", "otb"], None),
 ])
 def test_tracker_set_of_a_new_run(train: ModuleType, argv: list[str], expected) -> None:
-    from envs.data.otb import TRACKER_SPLIT
+    from bboxtune.envs.data.otb import TRACKER_SPLIT
 
     args = train.parse_args(argv)
     want = list(TRACKER_SPLIT[expected]) if isinstance(expected, str) else expected
     assert args.env_kwargs.get("trackers") == want
+
+
+def test_a_run_leaves_nothing_in_the_temp_directory(train: ModuleType, tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """SB3's default logger makes an empty ``SB3-<date>`` folder in the temp directory for every learn() call (torch
+    may keep its own compile cache there, ``torchinductor_<user>``: torch's, shared by the process)."""
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(temp))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    train.run([*TINY, "--timesteps", "32", "--out", str(tmp_path / "run")])
+    assert [p.name for p in temp.iterdir() if not p.name.startswith("torchinductor_")] == []

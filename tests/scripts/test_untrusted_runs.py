@@ -20,11 +20,9 @@ import pytest
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecNormalize
 
-from agents.commands import compare, track_video
-from agents.run_files import RunError, load_stats
-from agents.runs import SB3Policy, env_spaces_venv, load_config
-
-from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
+from bboxtune.agents.commands import compare, track_video
+from bboxtune.agents.training.run_files import RunError, load_stats
+from bboxtune.agents.training.runs import SB3Policy, env_spaces_venv, load_config
 
 COMPARE = ["--episodes", "2", "--train-episodes", "11", "--global-trials", "2", "--oracle-budget", "8", "--bootstrap", "20"]
 

@@ -10,12 +10,11 @@ import cv2
 import numpy as np
 import pytest
 
-from agents.commands import track_video, video_camera, video_table
-from agents.video_tuning import fixed_tuner
-from envs.video.synthetic import VideoScenario, render
+from bboxtune.agents.commands import track_video, video_camera, video_table
+from bboxtune.agents.smoothing.video_tuning import fixed_tuner
+from bboxtune.envs.video.synthetic import VideoScenario, render
 
-from .cli_misuse import check_misuse, misuse, misuse_paths  # noqa: F401  (fixture)
-from .tiny_run import tiny_run, train  # noqa: F401  (fixtures)
+from .cli_misuse import check_misuse, misuse
 
 SUMMARY_KEYS = ("raw_success_auc", "filtered_success_auc", "n_frames", "n_missing")
 

@@ -1,4 +1,4 @@
-"""Shared by the train.py and compare.py tests: the train command (:mod:`agents.commands.train`) as a fixture, and one
+"""Shared by the train.py and compare.py tests: the train command (:mod:`bboxtune.agents.commands.train`) as a fixture, and one
 tiny trained run per test module."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from types import ModuleType
 import pytest
 import torch
 
-from agents.commands import train as train_command
+from bboxtune.agents.commands import train as train_command
 
 REPO = Path(__file__).resolve().parents[2]
 torch.set_num_threads(1)  # tiny MLPs: more intra-op threads only contend for the cores
@@ -21,7 +21,7 @@ TINY = ["--timesteps", "64", "--n-envs", "2", "--hyperparams", "n_steps:16", "ba
 
 @pytest.fixture(scope="module")
 def train() -> ModuleType:
-    """:mod:`agents.commands.train` (``train.run(argv)`` returns the run directory)."""
+    """:mod:`bboxtune.agents.commands.train` (``train.run(argv)`` returns the run directory)."""
     return train_command
 
 

@@ -1,11 +1,11 @@
-"""agents.reproduce.common: settings checks, the verdict cell of each paper's table, the figure writer."""
+"""bboxtune.agents.reproduce.common: settings checks, the verdict cell of each paper's table, the figure writer."""
 
 from __future__ import annotations
 
 import matplotlib.pyplot as plt
 import pytest
 
-from agents.reproduce.common import make_settings, save_figure, verdict
+from bboxtune.agents.reproduce.common import make_settings, save_figure, verdict
 
 
 def test_bad_mc_is_rejected():

@@ -1,11 +1,11 @@
-"""agents.reproduce.shmaliy_cmn ([Shmaliy-CMN], [Shmaliy-CMN]): the measured N_opt(ψ) and the paper's horizon rule."""
+"""bboxtune.agents.reproduce.shmaliy_cmn ([Shmaliy-CMN], [Shmaliy-CMN]): the measured N_opt(ψ) and the paper's horizon rule."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from agents.reproduce import shmaliy_cmn
-from agents.reproduce.common import make_settings
+from bboxtune.agents.reproduce import shmaliy_cmn
+from bboxtune.agents.reproduce.common import make_settings
 
 
 def test_measured_nopt_grows_with_psi():

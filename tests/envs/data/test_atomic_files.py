@@ -1,4 +1,4 @@
-"""envs.data.atomic_files: the new file appears whole or not at all, the previous one survives a failing writer, no
+"""bboxtune.envs.data.atomic_files: the new file appears whole or not at all, the previous one survives a failing writer, no
 temporary file is left behind, and the temporary name keeps the destination's suffix."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from envs.data import atomic_files
-from envs.data.atomic_files import atomic_write, atomic_write_file, write_text_atomic
+from bboxtune.envs.data import atomic_files
+from bboxtune.envs.data.atomic_files import atomic_write, atomic_write_file, write_text_atomic
 
 
 class WriterFailed(Exception):

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.data.metrics import (
+from bboxtune.envs.data.metrics import (
     PRECISION_THRESHOLDS,
     SUCCESS_THRESHOLDS,
     center_error,
@@ -171,8 +171,8 @@ def test_mismatched_sequences_raise_naming_both_sides() -> None:
 def test_equal_non_integer_boxes_never_pass_the_iou_threshold_one():
     """Rounding can make the IoU of two equal 2-decimal boxes 1 + 1e-14; it is clipped to 1, so a perfect
     estimate scores 20/21 of the success plot (IoU > 1.0 never holds) in metrics and in the fused scorer."""
-    from envs.data.boxes import xywh_to_cxcywh
-    from envs.episodes.scoring import score_estimates
+    from bboxtune.envs.data.boxes import xywh_to_cxcywh
+    from bboxtune.envs.episodes.scoring import score_estimates
 
     boxes = np.round(np.random.default_rng(0).uniform(1.0, 300.0, (5000, 4)), 2)
     assert iou(boxes, boxes).max() <= 1.0

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
 
-from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
-from envs.data.metrics import iou
-from envs.data.mot import (
+from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from bboxtune.envs.data.metrics import iou
+from bboxtune.envs.data.mot import (
     MATCH_IOU,
     MIN_DETECTIONS,
     MIN_FRAMES,
@@ -21,7 +21,7 @@ from envs.data.mot import (
     resolve_root,
     split,
 )
-from envs.data.mot_io import Detections, GroundTruth, read_detections, read_ground_truth
+from bboxtune.envs.data.mot_io import Detections, GroundTruth, read_detections, read_ground_truth
 
 
 def detections(rows: list[tuple[int, list[float]]], scores: list[float] | None = None) -> Detections:

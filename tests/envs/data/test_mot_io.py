@@ -15,7 +15,7 @@ import pytest
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
-from envs.data.mot_io import (
+from bboxtune.envs.data.mot_io import (
     MAX_INDEX,
     MAX_LINE_CHARS,
     SequenceInfo,
@@ -269,7 +269,7 @@ def test_50000_line_files_with_a_bad_line_stay_linear(tmp_path):
     lines[25_000] = lines[25_000][:-2] + "--1"
     middle = write(tmp_path / "middle.txt", "\n".join(lines))
     digits = write(tmp_path / "digits.txt", b"7" * 50_000_000)
-    code = ("import json, sys\nfrom envs.data.mot_io import read_ground_truth\nfor path in sys.argv[1:]:\n"
+    code = ("import json, sys\nfrom bboxtune.envs.data.mot_io import read_ground_truth\nfor path in sys.argv[1:]:\n"
             "    try:\n        print(json.dumps({'rows': len(read_ground_truth(path))}))\n"
             "    except ValueError as err:\n        print(json.dumps({'error': str(err)}))\n")
     run = subprocess.run([sys.executable, "-c", code, str(middle), str(digits)], cwd=REPO, capture_output=True,

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from envs.data.otb import OTBDataset, resolve_root, split, video_of
-from envs.data.otb_io import MAX_FILE_BYTES, parse_boxes, read_boxes
+from bboxtune.envs.data.otb import OTBDataset, resolve_root, split, video_of
+from bboxtune.envs.data.otb_io import MAX_FILE_BYTES, parse_boxes, read_boxes
 
 OTB_ROOT = os.environ.get("OTB_ROOT")
 needs_otb = pytest.mark.skipif(not OTB_ROOT, reason="OTB_ROOT is unset (CI: OTB_ROOT=../shared/data/otb)")
@@ -44,7 +44,7 @@ def test_box_text_variants_parse_identically(tmp_path, text):
 
 def test_zero_size_box_is_a_logged_missing_frame(tmp_path, caplog):
     path = write(tmp_path / "Board.txt", "1,2,3,4\n0,0,0,0\n5,6,0,8\n")
-    with caplog.at_level(logging.INFO, logger="envs.data.otb_io"):
+    with caplog.at_level(logging.INFO, logger="bboxtune.envs.data.otb_io"):
         boxes = read_boxes(path)
     assert np.isnan(boxes[1:]).all() and np.isfinite(boxes[0]).all()
     assert f"{path}:2" in caplog.text and f"{path}:3" in caplog.text
@@ -148,12 +148,12 @@ def test_shared_layout(tmp_path, caplog):
     assert ds.sequence("Jogging-1").video == "Jogging"
     assert np.isnan(ds.groundtruth("Board")[1]).all()
     assert ds.tracker_sequences("T1") == ("Board", "Car4", "Jogging-1")
-    with caplog.at_level(logging.INFO, logger="envs.data.otb"):
+    with caplog.at_level(logging.INFO, logger="bboxtune.envs.data.otb"):
         jog = ds.tracker_boxes("T1", "Jogging-1")
     assert np.isnan(jog[1]).all() and "jogging_1.txt" in caplog.text
     assert any(r.levelno == logging.WARNING for r in caplog.records)
     caplog.clear()
-    with caplog.at_level(logging.INFO, logger="envs.data.otb"):
+    with caplog.at_level(logging.INFO, logger="bboxtune.envs.data.otb"):
         ds.tracker_boxes("T1", "Board")
     assert [r.levelno for r in caplog.records] == [logging.INFO]  # the padded frame has no ground truth
     with pytest.raises(ValueError, match=r"jogging_1.txt:2: file has 1 boxes, ground truth has 2"):

@@ -20,9 +20,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.data.number_grammar import parse_float, parse_int
-from envs.data.otb import OTBDataset
-from envs.data.otb_io import MAX_LINE_CHARS, parse_boxes
+from bboxtune.envs.data.number_grammar import parse_float, parse_int
+from bboxtune.envs.data.otb import OTBDataset
+from bboxtune.envs.data.otb_io import MAX_LINE_CHARS, parse_boxes
 
 REPO = Path(__file__).resolve().parents[3]
 OTB_ROOT = os.environ.get("OTB_ROOT")
@@ -80,7 +80,7 @@ def test_parse_int_accepts_exactly_the_grammar(token):
 # --- hang guards ----------------------------------------------------------------------------------------------------
 def read_in_subprocess(paths: list[Path]) -> list[dict]:
     """read_boxes on each path in one fresh interpreter: {"rows": T} or {"error": message} per path."""
-    code = ("import json, sys\nfrom envs.data.otb_io import read_boxes\nfor path in sys.argv[1:]:\n"
+    code = ("import json, sys\nfrom bboxtune.envs.data.otb_io import read_boxes\nfor path in sys.argv[1:]:\n"
             "    try:\n        print(json.dumps({'rows': len(read_boxes(path))}))\n"
             "    except ValueError as err:\n        print(json.dumps({'error': str(err)}))\n")
     run = subprocess.run([sys.executable, "-c", code, *map(str, paths)], cwd=REPO, capture_output=True, text=True,

@@ -3,8 +3,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
-from envs.data.otb import replay_synthetic, replay_tracker
+from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from bboxtune.envs.data.otb import replay_synthetic, replay_tracker
 
 
 def gt_boxes(T: int = 400) -> np.ndarray:

@@ -6,8 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.data.sim_detections import (OUTLIER_LOG_SIZE_STD, OUTLIER_SHIFT, DetectionModel, gilbert_elliott, keep_ends,
-                                      reachable_run)
+from bboxtune.envs.data.sim_detections import (
+    OUTLIER_LOG_SIZE_STD,
+    OUTLIER_SHIFT,
+    DetectionModel,
+    gilbert_elliott,
+    keep_ends,
+    reachable_run,
+)
 
 
 def _model(dropout: str = "runs", rate: tuple[float, float] = (0.0, 0.6), run: tuple[float, float] = (1.0, 20.0),

@@ -1,4 +1,4 @@
-"""scenario="nonstationary": regime switches, manoeuvre bursts and gaps within a track (envs.data.sim_regimes)."""
+"""scenario="nonstationary": regime switches, manoeuvre bursts and gaps within a track (bboxtune.envs.data.sim_regimes)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401  (registers the ids)
-from envs.data.sim_regimes import REGIMES, simulate_nonstationary
-from envs.data.simulate import Scenario
-from envs.episodes.config import EnvConfig
+from bboxtune import envs  # noqa: F401  (registers the ids)
+from bboxtune.envs.data.sim_regimes import REGIMES, simulate_nonstationary
+from bboxtune.envs.data.simulate import Scenario
+from bboxtune.envs.episodes.config import EnvConfig
 
 TUNE, RETUNE = "bboxtune/FilterTune-v0", "bboxtune/FilterRetune-v0"
 
@@ -28,7 +28,7 @@ def test_schedule_is_consistent_with_the_track(seed: int) -> None:
     sc, T = ep.scenario, len(ep.y)
     regimes = sc["regimes"]
     assert regimes[0]["start"] == 0 and regimes[-1]["end"] == T
-    assert all(a["end"] == b["start"] for a, b in zip(regimes, regimes[1:]))  # they tile the track
+    assert all(a["end"] == b["start"] for a, b in zip(regimes, regimes[1:], strict=False))  # they tile the track
     assert REGIMES.noise_switches[0] <= len(regimes) - 1 <= REGIMES.noise_switches[1]
     assert all(T // 10 <= r["start"] < T - T // 10 for r in regimes[1:])
     assert all(0.0 <= r["psi"] <= 0.95 and 0.5 <= r["sigma_xi"] <= 10.0 for r in regimes)

@@ -6,8 +6,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from envs.data.sim_motion import reflect
-from envs.data.simulate import PRESETS, Scenario, ScenarioRanges, simulate, simulate_each
+from bboxtune.envs.data.sim_motion import reflect
+from bboxtune.envs.data.simulate import PRESETS, Scenario, ScenarioRanges, simulate, simulate_each
 
 
 def _bounce(x: float, low: float, high: float) -> tuple[float, float]:
@@ -84,9 +84,9 @@ def test_simulate_each_equals_simulating_one_at_a_time(ndim):
     scenarios = [ranges.sample(np.random.default_rng(100 + i)) for i in range(5)]
     scenarios[2] = replace(scenarios[2], psi=0.0)  # white noise: no filtering of ξ
     each = simulate_each(scenarios, [np.random.default_rng(i) for i in range(5)])
-    for i, (s, track) in enumerate(zip(scenarios, each)):
+    for i, (s, track) in enumerate(zip(scenarios, each, strict=False)):
         alone = simulate(s, np.random.default_rng(i))
-        for got, want in zip(track, alone):  # bit-identical, not just close: episodes are pure functions of seeds
+        for got, want in zip(track, alone, strict=False):  # bit-identical, not just close: episodes are pure functions of seeds
             np.testing.assert_array_equal(got, want)
     with pytest.raises(ValueError, match="equal n_frames"):
         simulate_each([scenarios[0], replace(scenarios[1], n_frames=301)], [np.random.default_rng(0)] * 2)
@@ -204,7 +204,7 @@ def test_size_bounds_change_only_tracks_that_reach_them():
     free = simulate(replace(s, size_bounds=(1e-6, 1e9)), np.random.default_rng(4))
     bounded = simulate(s, np.random.default_rng(4))
     assert 4.0 < free.truth[:, 2:].min() and free.truth[:, 2:].max() < 1000.0  # never reaches (4, 1000) px
-    for got, want in zip(bounded, free):
+    for got, want in zip(bounded, free, strict=False):
         np.testing.assert_array_equal(got, want)
     tight = simulate(replace(s, size_bounds=(80.0, 120.0)), np.random.default_rng(4))
     assert not np.array_equal(tight.truth, free.truth)
@@ -227,13 +227,13 @@ def test_long_tracks_keep_sizes_within_the_bounds(n_frames):
 def test_default_env_tracks_never_reach_the_size_bounds():
     """The default 500-frame env episodes (published results) are the free tracks, bit for bit: over the first
     1,000 noise seeds and the 500 test seeds, widening the bounds to the widest allowed changes nothing."""
-    from envs.episodes.config import EnvConfig
-    from envs.episodes.sources import SimSource
+    from bboxtune.envs.episodes.config import EnvConfig
+    from bboxtune.envs.episodes.sources import SimSource
 
     seeds = list(range(1000)) + [10**9 + i for i in range(500)]
     default = SimSource(EnvConfig()).draw_many(seeds)
     free = SimSource(EnvConfig(box_size_bounds=(1.0, 1e5))).draw_many(seeds)
-    for a, b in zip(default, free):
+    for a, b in zip(default, free, strict=False):
         np.testing.assert_array_equal(a.y, b.y)
         np.testing.assert_array_equal(a.truth, b.truth)
     sizes = np.stack([ep.truth[:, 2:] for ep in default])

@@ -1,4 +1,4 @@
-"""The simulator's opt-in "otb" motion model (envs.data.sim_motion): bit-identity and the model's statistics."""
+"""The simulator's opt-in "otb" motion model (bboxtune.envs.data.sim_motion): bit-identity and the model's statistics."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from envs.data.sim_motion import OTB_MOTION, OTBMotion
-from envs.data.simulate import Scenario, ScenarioRanges, simulate, simulate_each
-from envs.episodes.config import EnvConfig
-from envs.episodes.sources import SimSource
+from bboxtune.envs.data.sim_motion import OTB_MOTION, OTBMotion
+from bboxtune.envs.data.simulate import Scenario, ScenarioRanges, simulate, simulate_each
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.sources import SimSource
 
 
 def test_simulate_each_equals_simulating_one_at_a_time():
@@ -19,8 +19,8 @@ def test_simulate_each_equals_simulating_one_at_a_time():
     scenarios = [ranges.sample(np.random.default_rng(100 + i)) for i in range(6)]
     assert len({s.velocity_rms for s in scenarios}) == 6 and all(s.motion == "otb" for s in scenarios)
     each = simulate_each(scenarios, [np.random.default_rng(i) for i in range(6)])
-    for i, (s, track) in enumerate(zip(scenarios, each)):
-        for got, want in zip(track, simulate(s, np.random.default_rng(i))):  # bit-identical
+    for i, (s, track) in enumerate(zip(scenarios, each, strict=False)):
+        for got, want in zip(track, simulate(s, np.random.default_rng(i)), strict=False):  # bit-identical
             np.testing.assert_array_equal(got, want)
     with pytest.raises(ValueError, match="motion"):
         simulate_each([scenarios[0], replace(scenarios[1], motion="cv")], [np.random.default_rng(0)] * 2)
@@ -31,7 +31,7 @@ def test_env_episodes_are_pure_functions_of_the_seed():
     otb = SimSource(EnvConfig(motion="otb"))
     batch = otb.draw_many(seeds)
     cv = SimSource(EnvConfig()).draw_many(seeds)
-    for seed, ep, ep_cv in zip(seeds, batch, cv):
+    for seed, ep, ep_cv in zip(seeds, batch, cv, strict=False):
         alone = otb.draw(None, seed)
         np.testing.assert_array_equal(ep.y, alone.y)
         np.testing.assert_array_equal(ep.truth, alone.truth)

@@ -1,4 +1,4 @@
-"""The one bounded reader (envs.data.textfile) and the readers built on it: never block on a pipe, never read
+"""The one bounded reader (bboxtune.envs.data.textfile) and the readers built on it: never block on a pipe, never read
 past the limit, name the file."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from agents import cli
-from agents.checkpoints import _pointer
-from agents.run_files import RunError, read_json
-from envs.data import textfile
+from bboxtune.agents import readers
+from bboxtune.agents.training.checkpoints import _pointer
+from bboxtune.agents.training.run_files import RunError, read_json
+from bboxtune.envs.data import textfile
 
 
 @pytest.fixture
@@ -43,9 +43,9 @@ def test_limit_and_utf8_line(tmp_path: Path):
 
 def test_run_file_readers_refuse_a_pipe(fifo: Path, tmp_path: Path):
     with pytest.raises(ValueError, match="not a regular file"):
-        cli.read_json(fifo)
+        readers.read_json(fifo)
     with pytest.raises(ValueError, match="not a regular file"):
-        cli.read_yaml(fifo)
+        readers.read_yaml(fifo)
     with pytest.raises(RunError, match="not a regular file"):
         read_json(fifo)
     os.mkfifo(tmp_path / "latest")
@@ -55,7 +55,7 @@ def test_run_file_readers_refuse_a_pipe(fifo: Path, tmp_path: Path):
 
 
 def test_replay_buffer_reader_refuses_a_pipe(fifo: Path):
-    from agents.run_files import load_replay_buffer
+    from bboxtune.agents.training.run_files import load_replay_buffer
 
     class Model:  # only the buffer's attributes are read before the file is opened
         replay_buffer = type("Buffer", (), {"observations": 0})()

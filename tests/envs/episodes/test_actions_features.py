@@ -7,10 +7,19 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import filters
-from envs.episodes.actions import (ACCEPTS, BACKENDS, DEFAULT_TUNE, SIGMA_PARAMETERS, STOCK, TUNABLE, ActionMap,
-                                   Nominal, parameter_family)
-from envs.episodes.features import FEATURE_NAMES, estimate_sigmas, measurement_features
+from bboxtune import filters
+from bboxtune.envs.episodes.actions import (
+    ACCEPTS,
+    BACKENDS,
+    DEFAULT_TUNE,
+    SIGMA_PARAMETERS,
+    STOCK,
+    TUNABLE,
+    ActionMap,
+    Nominal,
+    parameter_family,
+)
+from bboxtune.envs.episodes.features import FEATURE_NAMES, estimate_sigmas, measurement_features
 
 NOMINAL = Nominal(sigma_w=10.0, sigma_v=2.0, psi=0.0, horizon=24)
 FULL = ActionMap(tune=("psi", "horizon", "sigma_w", "sigma_v"), K=2, horizon_max=400)
@@ -47,7 +56,7 @@ def test_bytetrack_weights_are_stock_times_decades_and_stock_when_untuned() -> N
 @settings(max_examples=60, deadline=None)
 @given(st.floats(-1.5, 1.5), st.floats(-1.5, 1.5), st.floats(-1.5, 1.5))
 def test_bytetrack_params_actions_round_trip(lp: float, lv: float, lm: float) -> None:
-    params = {k: stock * 10**e for (k, stock), e in zip(STOCK.items(), (lp, lv, lm))}
+    params = {k: stock * 10**e for (k, stock), e in zip(STOCK.items(), (lp, lv, lm), strict=False)}
     a = BYTETRACK.to_actions(params, NOMINAL)
     np.testing.assert_allclose(a[0], np.array([lp, lv, lm]) / 1.5, atol=1e-12)
     back = BYTETRACK.to_params(a.astype(np.float32), NOMINAL)  # policies emit float32
@@ -99,7 +108,7 @@ def test_bad_tune_raises() -> None:
 
 
 def _track(rng: np.random.Generator, T: int = 400, sigma_v: float = 2.0, sigma_w: float = 30.0, tau: float = 0.05):
-    from envs.data.simulate import Scenario, simulate
+    from bboxtune.envs.data.simulate import Scenario, simulate
 
     track = simulate(Scenario(psi=0.0, sigma_w=sigma_w, sigma_xi=sigma_v, tau=tau, n_frames=T, ndim=4), rng)
     return track.truth, track.y
@@ -159,7 +168,7 @@ def test_sigma_estimates_recover_white_noise_statistics() -> None:
 
 
 def test_nominal_of_the_rule_and_as_params() -> None:
-    from filters.horizon import rule_horizon
+    from bboxtune.filters.horizon import rule_horizon
 
     nominal = Nominal.of_rule(sigma_v=4.0, sigma_w=50.0, tau=0.05, psi=0.6, horizon_max=400)
     assert nominal.horizon == int(rule_horizon(4.0, 50.0, 0.05, 2, max_horizon=400)) and nominal.psi == 0.6

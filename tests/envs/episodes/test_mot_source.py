@@ -1,4 +1,4 @@
-"""source="mot": MOT15 identity episodes (envs.episodes.mot_source) on hand-made identities and, with MOT_ROOT, the data."""
+"""source="mot": MOT15 identity episodes (bboxtune.envs.episodes.mot_source) on hand-made identities and, with MOT_ROOT, the data."""
 
 from __future__ import annotations
 
@@ -6,13 +6,13 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401  (registers the env ids)
-from envs.data.boxes import xywh_to_cxcywh
-from envs.data.mot import MOTIdentity
-from envs.episodes.config import EnvConfig
-from envs.episodes.mot_source import STRIDED_MIN_FRAMES, MOTSource, identity_episode
+from bboxtune import envs  # noqa: F401  (registers the env ids)
+from bboxtune.envs.data.boxes import xywh_to_cxcywh
+from bboxtune.envs.data.mot import MOTIdentity
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.mot_source import STRIDED_MIN_FRAMES, MOTSource, identity_episode
 
-TRAIN, TEST = "Venice-2", "KITTI-13"  # parts of the OTB split rule (envs.data.mot.split)
+TRAIN, TEST = "Venice-2", "KITTI-13"  # parts of the OTB split rule (bboxtune.envs.data.mot.split)
 
 
 def identity(sequence: str, ident: int, T: int = 60, fps: float = 30.0, missing: tuple[int, ...] = (0, 1, 7, 8, 9)) -> MOTIdentity:

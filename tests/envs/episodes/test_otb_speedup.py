@@ -6,9 +6,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from envs.data.otb import OTBDataset, replay_synthetic, replay_tracker
-from envs.episodes.config import EnvConfig
-from envs.episodes.sources import SPEEDUP_MIN_FRAMES, OTBSource
+from bboxtune.envs.data.otb import OTBDataset, replay_synthetic, replay_tracker
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.sources import SPEEDUP_MIN_FRAMES, OTBSource
 from tests.envs.conftest import OTB_ROOT, needs_otb
 
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.data.boxes import cxcywh_to_xywh
-from envs.data.otb import replay_synthetic
-from envs.episodes.config import EnvConfig
-from envs.episodes.episode import rule_nominal
-from envs.episodes.features import box_scale
-from envs.episodes.sources import SimSource
+from bboxtune.envs.data.boxes import cxcywh_to_xywh
+from bboxtune.envs.data.otb import replay_synthetic
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.episode import rule_nominal
+from bboxtune.envs.episodes.features import box_scale
+from bboxtune.envs.episodes.sources import SimSource
 
 
 def test_box_noise_is_the_otb_replay_noise_on_the_simulated_truth() -> None:

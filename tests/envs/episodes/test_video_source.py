@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import envs.episodes.video_source as source_mod
-from envs.episodes.config import EnvConfig
-from envs.episodes.video_source import VideoSettings, VideoSource, detected_video, parse_sequence
+import bboxtune.envs.episodes.video_source as source_mod
+from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.video_source import VideoSettings, VideoSource, detected_video, parse_sequence
 
 SETTINGS = VideoSettings(detector="template", video_pool=3, video_size=(128, 96))
 

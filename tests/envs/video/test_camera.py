@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import filters
-from envs.data.boxes import xywh_to_cxcywh
-from envs.episodes.video_source import NOMINAL_REL
-from envs.video.camera import background_shift, background_velocity, camera_offset, run_compensated
-from envs.video.detectors import detect_video, make_detector
-from envs.video.synthetic import VideoRanges, synthetic_video
+from bboxtune import filters
+from bboxtune.envs.data.boxes import xywh_to_cxcywh
+from bboxtune.envs.episodes.video_source import NOMINAL_REL
+from bboxtune.envs.video.camera import background_shift, background_velocity, camera_offset, run_compensated
+from bboxtune.envs.video.detectors import detect_video, make_detector
+from bboxtune.envs.video.synthetic import VideoRanges, synthetic_video
 
 TAU = 1 / 30
 CAMERA_VIDEOS = VideoRanges(width=160, height=120, n_frames=60, size=(24.0, 40.0), camera_probability=1.0,

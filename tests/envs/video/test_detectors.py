@@ -8,10 +8,10 @@ import cv2
 import numpy as np
 import pytest
 
-from envs.data import metrics
-from envs.video.detector import MAX_WIDENING
-from envs.video.detectors import DETECTORS, detect_video, make_detector
-from envs.video.synthetic import VideoScenario, render
+from bboxtune.envs.data import metrics
+from bboxtune.envs.video.detector import MAX_WIDENING
+from bboxtune.envs.video.detectors import DETECTORS, detect_video, make_detector
+from bboxtune.envs.video.synthetic import VideoScenario, render
 
 SCENE = VideoScenario(width=128, height=96, n_frames=20, object_size=(32.0, 28.0), speed=60.0, noise=2.0, rotation=3.0)
 

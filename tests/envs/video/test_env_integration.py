@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import envs  # noqa: F401  (registers the ids)
+from bboxtune import envs  # noqa: F401  (registers the ids)
 
 SETTINGS = {"source": "video", "detector": "regions", "video_pool": 2, "video_size": (128, 96)}
 

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from envs.video.frames import image_folder, otb_frames, video_file
+from bboxtune.envs.video.frames import image_folder, otb_frames, video_file
 
 
 def write_images(folder, numbers, size=(24, 16)):

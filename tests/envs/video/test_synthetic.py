@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from envs.video.synthetic import VideoRanges, VideoScenario, render, synthetic_video
+from bboxtune.envs.video.synthetic import VideoRanges, VideoScenario, render, synthetic_video
 
 TINY = VideoScenario(width=64, height=64, n_frames=30, object_size=(16.0, 14.0), speed=40.0, noise=0.0)
 

@@ -1,0 +1,11 @@
+"""``reproduce_shmaliy_cmn.py``: the [Shmaliy-CMN] part of :mod:`bboxtune.agents.commands.reproduce` alone
+(experiments: :mod:`bboxtune.agents.reproduce.shmaliy_cmn`)."""
+
+from __future__ import annotations
+
+from bboxtune.agents.commands import reproduce
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run this part alone (``reproduce.py`` runs every part): see ``--help``."""
+    return reproduce.main(argv, part="shmaliy_cmn")

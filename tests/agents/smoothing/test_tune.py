@@ -1,0 +1,189 @@
+"""bboxtune.agents.tune / bboxtune.agents.smooth: the observation is the env's own (reset), the parameters are what
+env.step applies
+for the policy's action, the smoothed track is the env's estimate for it; inputs are checked, tuners resolved."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import shutil
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from bboxtune import agents
+from bboxtune.agents.smoothing import pretrained
+from bboxtune.agents.smoothing.tuner import load_pretrained
+from bboxtune.agents.training.run_files import RunError
+from bboxtune.envs.data.boxes import cxcywh_to_xywh
+
+tune_module = sys.modules["bboxtune.agents.smoothing.tuner"]  # ``bboxtune.agents.tune`` is the function
+Tuner = tune_module.Tuner
+ENV_ID = "bboxtune/FilterTune-v0"
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+
+
+def _track(seed: int = 0, T: int = 60) -> np.ndarray:
+    """A smooth xywh track with noise (px)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(T)
+    centre = np.stack([200 + 2.0 * t + 5 * np.sin(t / 9), 150 + np.cos(t / 7) * 20], axis=1) + rng.normal(0, 2, (T, 2))
+    size = np.array([40.0, 60.0]) * np.exp(rng.normal(0, 0.02, (T, 2)))
+    return np.concatenate([centre - size / 2, size], axis=1)
+
+
+@pytest.mark.parametrize("name", ["sim_ufir_cmn", "sim_kf_cmn"])
+def test_sim_episode_observation_params_and_estimate_are_the_envs(name):
+    tuner = load_pretrained(name)
+    env = gym.make(ENV_ID, **dataclasses.asdict(tuner.config) | {"track_length": 120}).unwrapped  # shorter tracks
+    tuner = dataclasses.replace(tuner, config=env.config)
+    for seed in (3, 11):
+        obs, _ = env.reset(options={"noise_seed": seed})
+        ep = env.episode
+        boxes = cxcywh_to_xywh(ep.y)
+        seen = tuner.observe(boxes, ep.tau)
+        assert seen.nominal == ep.nominal
+        np.testing.assert_allclose(seen.obs, obs, rtol=1e-5, atol=1e-6)  # xywh round trip: last-bit differences
+        action = tuner.action(seen)
+        np.testing.assert_allclose(action, tuner.policy.predict(obs[None])[0], atol=1e-4)
+        params = tuner.tune(boxes, ep.tau)
+        estimate = env.score(action[None])["estimates"][0]
+        _, _, _, _, info = env.step(action)
+        assert params == info["params"]
+        np.testing.assert_allclose(tuner.smooth(boxes, ep.tau, params), cxcywh_to_xywh(estimate), rtol=1e-9, atol=1e-7)
+
+
+@pytest.mark.skipif(not os.environ.get("OTB_ROOT"), reason="needs the OTB data (set OTB_ROOT)")
+def test_otb_tracker_episode_from_the_result_file_is_the_envs_bit_for_bit():
+    env = gym.make(ENV_ID, backend="ufir_cmn", source="otb_tracker", tracker="STRUCK", split="test").unwrapped
+    tuner = dataclasses.replace(load_pretrained("sim_ufir_cmn"), config=env.config)  # same spaces, this env's rule
+    dataset = env.source.dataset
+    names = env.source.names[:3]
+    for name in names:
+        obs, _ = env.reset(options={"sequence": name, "noise_seed": 0})
+        boxes = dataset.tracker_boxes("STRUCK", name)  # what a user has: the tracker's file, xywh
+        seen = tuner.observe(boxes, env.config.otb_tau)
+        assert seen.nominal == env.episode.nominal
+        np.testing.assert_array_equal(seen.obs, obs)
+        action = tuner.action(seen)
+        params = tuner.tune(boxes, env.config.otb_tau)
+        estimate = env.score(action[None])["estimates"][0]
+        _, _, _, _, info = env.step(action)
+        assert params == info["params"]
+        np.testing.assert_array_equal(tuner.smooth(boxes, env.config.otb_tau, params), cxcywh_to_xywh(estimate))
+
+
+def test_the_rule_nominal_of_the_otb_sources_scales_with_the_box():
+    cfg = dataclasses.replace(load_pretrained("sim_ufir_cmn").config, source="otb_tracker")
+    small, large = _track(1), _track(1) * 4
+    a, b = tune_module.rule_nominal(cfg, small, 1 / 30), tune_module.rule_nominal(cfg, large, 1 / 30)
+    assert b.sigma_v == pytest.approx(4 * a.sigma_v) and b.sigma_w == pytest.approx(4 * a.sigma_w)
+    sim = dataclasses.replace(cfg, source="sim")
+    assert tune_module.rule_nominal(sim, small, 1 / 30) == tune_module.rule_nominal(sim, large, 1 / 30)
+
+
+def test_the_package_functions_use_the_named_tuner_and_the_run_directory_alike():
+    boxes, tau = _track(2), 1 / 30
+    params = agents.tune(boxes, tau, pretrained="sim_ufir_cmn")
+    assert set(params) == {"psi", "horizon"} and isinstance(params["horizon"], int)
+    assert params == agents.tune(boxes, tau, model=os.path.join(REPO, "docs/results/ufir_cmn/run"))
+    assert params == agents.tune(boxes, tau, backend="ufir_cmn", pretrained="sim_ufir_cmn")
+    smoothed = agents.smooth(boxes, tau, pretrained="sim_ufir_cmn")
+    np.testing.assert_array_equal(smoothed, load_pretrained("sim_ufir_cmn").smooth(boxes, tau, params))
+    assert smoothed.shape == boxes.shape and np.abs(smoothed - boxes).max() > 0
+
+
+def test_missing_frames_are_predicted_after_the_first_measurement():
+    boxes = _track(4)
+    boxes[:3] = np.nan
+    boxes[20:26] = np.nan
+    smoothed = agents.smooth(boxes, 1 / 30, pretrained="sim_kf_cmn")
+    assert np.isnan(smoothed[:3]).all() and np.isfinite(smoothed[3:]).all()
+
+
+def test_the_default_is_the_tracker_output_tuner(tmp_path, monkeypatch):
+    monkeypatch.setattr(pretrained, "ROOT", tmp_path)
+    with pytest.raises(ValueError, match=f"{tune_module.DEFAULT_PRETRAINED}' is not installed; available: none"):
+        agents.tune(_track(), 1 / 30)
+    shutil.copytree(os.path.join(REPO, "agents/pretrained/sim_kf_cmn"), tmp_path / tune_module.DEFAULT_PRETRAINED)
+    shutil.copytree(os.path.join(REPO, "agents/pretrained/sim_ufir_cmn"), tmp_path / "otb_tracker_ufir_cmn")
+    assert set(agents.tune(_track(), 1 / 30)) == {"psi", "sigma_w", "sigma_v"}
+    assert set(agents.tune(_track(), 1 / 30, backend="ufir_cmn")) == {"psi", "horizon"}
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"model": "x", "pretrained": "sim_ufir_cmn"}, "not both"),
+    ({"backend": "kf_cmn", "pretrained": "sim_ufir_cmn"}, "backend='kf_cmn'.*tunes 'ufir_cmn'"),
+    ({"pretrained": "nope"}, "'nope' is not installed; available: .*sim_ufir_cmn"),
+])
+def test_tuner_choice_errors(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        agents.tune(_track(), 1 / 30, **kwargs)
+
+
+@pytest.mark.parametrize("kwargs", [
+    {"backend": "kf_cmn", "source": "otb_tracker", "trackers": ["SiamFC", "ATOM"], "otb_root": "/nonexistent"},
+    {"backend": "ufir_cmn", "source": "mix", "mix_weights": [0.0, 1.0, 2.0], "trackers": ["X"], "horizon_max": 100},
+    {"backend": "ufir", "source": "video", "detector": "sift"},
+])
+def test_the_spaces_env_needs_no_data_set(kwargs, monkeypatch):
+    monkeypatch.delenv("OTB_ROOT", raising=False)
+    env = tune_module.spaces_venv({"env_id": ENV_ID, "env_kwargs": kwargs}, "config.yml").envs[0].unwrapped
+    reference = gym.make(ENV_ID, backend=kwargs["backend"], horizon_max=kwargs.get("horizon_max", 400)).unwrapped
+    assert env.action_map == reference.action_map and env.observation_space == reference.observation_space
+
+
+def test_a_multi_step_run_is_refused(tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(os.path.join(REPO, "docs/results/ufir_cmn/run"), run)
+    config = run / "config.yml"
+    config.write_text(config.read_text().replace("FilterTune-v0", "FilterRetune-v0"))
+    with pytest.raises(RunError, match="config.yml: env_id bboxtune/FilterRetune-v0"):
+        Tuner.from_run(run)
+
+
+def _with(boxes: np.ndarray, row: int, values: list[float]) -> np.ndarray:
+    out = boxes.copy()
+    out[row] = values
+    return out
+
+
+GOOD = _track(5, T=20)
+BAD_BOXES = [
+    (GOOD[:, :3], ValueError, r"boxes has shape \(20, 3\)"),
+    (GOOD.ravel(), ValueError, r"boxes has shape \(80,\)"),
+    (GOOD[None], ValueError, r"boxes has shape \(1, 20, 4\)"),
+    ([[1, 2, 3, 4], [1, 2, 3]], ValueError, "boxes is not an array of numbers"),
+    (GOOD.astype(str), TypeError, "boxes has dtype"),
+    (_with(GOOD, 4, [1, np.nan, 3, 4]), ValueError, r"boxes\[4\] .* partly NaN"),
+    (_with(GOOD, 5, [1, np.inf, 3, 4]), ValueError, r"boxes\[5\] .* finite x, y and w, h > 0"),
+    (_with(GOOD, 6, [1, 2, 0, 4]), ValueError, r"boxes\[6\] .* w, h > 0"),
+    (_with(GOOD, 7, [1, 2, 3, -4]), ValueError, r"boxes\[7\] .* w, h > 0"),
+    (GOOD[:7], ValueError, "boxes has 7 frames, 7 of them measured; a track needs at least 8 frames"),
+    (np.where(np.arange(20)[:, None] == 3, GOOD, np.nan), ValueError, "boxes has 20 frames, 1 of them measured"),
+]
+
+
+@pytest.mark.parametrize(("boxes", "error", "match"), BAD_BOXES)
+def test_bad_boxes_are_named(boxes, error, match):
+    with pytest.raises(error, match=match):
+        agents.tune(boxes, 1 / 30, pretrained="sim_ufir_cmn")
+
+
+@pytest.mark.parametrize(("tau", "error"), [
+    (0.0, ValueError), (-0.03, ValueError), (np.nan, ValueError), (np.inf, ValueError), (2.0, ValueError),
+    (1e-4, ValueError), ("0.03", TypeError), (True, TypeError), (None, TypeError),
+])
+def test_bad_tau_is_named(tau, error):
+    with pytest.raises(error, match=r"tau=.*allowed: a real number in \[0.001, 1\]"):
+        agents.tune(GOOD, tau, pretrained="sim_ufir_cmn")
+    with pytest.raises(error, match="tau="):
+        agents.smooth(GOOD, tau, pretrained="sim_ufir_cmn")
+
+
+def test_smooth_checks_given_params():
+    tuner = load_pretrained("sim_ufir_cmn")
+    with pytest.raises(ValueError, match=r"params has keys \['horizon'\]; back end ufir_cmn takes"):
+        tuner.smooth(GOOD, 1 / 30, {"horizon": 5})

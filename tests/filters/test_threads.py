@@ -1,0 +1,59 @@
+"""bboxtune.filters.threads: BLAS threads limited while a filter runs, and only then; importing changes nothing."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
+
+from bboxtune import filters
+from bboxtune.filters import threads
+
+
+def blas_counts() -> list[int]:
+    return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+
+
+def test_importing_every_part_leaves_the_blas_threads_alone() -> None:
+    """The libraries loaded before the import keep their thread counts (later ones, e.g. torch's, bring their own)."""
+    code = ("import json, numpy\nfrom threadpoolctl import threadpool_info, threadpool_limits\n"
+            "threadpool_limits(3, user_api='blas')\n"
+            "counts = lambda: {l['filepath']: l['num_threads'] for l in threadpool_info() if l['user_api'] == 'blas'}\n"
+            "before = counts()\n"
+            "import bboxtune, bboxtune.filters, bboxtune.envs, bboxtune.agents\n"
+            "print(json.dumps([before, counts()]))\n")
+    before, after = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                                              check=True).stdout)
+    assert before and set(before.values()) == {3}
+    assert {path: after[path] for path in before} == before
+
+
+@pytest.mark.parametrize("name", [*filters.NAMES, *filters.PEER_NAMES])
+def test_a_run_uses_the_set_count_and_restores_the_callers(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: list[list[int]] = []
+    flt = filters.make(name, filters.constant_velocity(0.05, ndim=4))
+    original = type(flt)._inputs
+
+    def spy(self: filters.Filter, *args: object) -> object:  # every back end's run checks its inputs here
+        seen.append(blas_counts())
+        return original(self, *args)
+
+    monkeypatch.setenv(threads.ENV_VAR, "1")
+    y = np.cumsum(np.random.default_rng(0).normal(size=(2, 40, 4)), axis=1) + 50.0
+    with threadpool_limits(2, user_api="blas"):
+        monkeypatch.setattr(type(flt), "_inputs", spy)
+        with threads._controller().limit(limits=2, user_api="blas"):
+            flt.run(y)
+            assert blas_counts() and set(blas_counts()) == {2}
+    assert seen and all(set(c) == {1} for c in seen)
+
+
+@pytest.mark.parametrize("text", ["0", "-1", "two", "1.5", "", "1025"])
+def test_a_bad_thread_count_is_refused_naming_the_variable(text: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(threads.ENV_VAR, text)
+    with pytest.raises(ValueError, match=f"{threads.ENV_VAR}=.*allowed: an integer in \\[1, 1024\\]"):
+        filters.make("kf", filters.constant_velocity(0.05)).run(np.zeros((5, 2)))
