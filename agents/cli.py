@@ -14,7 +14,8 @@ Every script validates its whole command line before it does any work or writes 
   is created here), :func:`json_file`, :func:`yaml_file` (parsed; errors name ``file:line:column``),
   :func:`box_xywh` (``x,y,w,h`` with w, h > 0).
 * :func:`bboxtune.agents.readers.read_json`, :func:`~bboxtune.agents.readers.read_yaml` — the same readers for
-  files a script finds itself (ValueError naming ``file:line:column``); :func:`argument_errors` turns the ValueError / OSError of a semantic check
+  files a script finds itself (ValueError naming ``file:line:column``); :func:`argument_errors` turns the ValueError
+  / OSError of a semantic check
   (constructing a config, opening a dataset) into a one-line error naming the flag.
 * :func:`key_values` — ``KEY=VALUE`` / ``KEY:VALUE`` items (``--env-kwargs`` of train.py and compare.py,
   ``--hyperparams``) into a dict of YAML values.

@@ -78,7 +78,7 @@ class FilterRetuneEnv(TrackEnv):
     ``"offline"`` is for smoothing a recorded track (a tracker's saved results), where every measurement exists
     before the filter runs: the filter itself stays causal, but the tuner may look ahead at the measurements (a
     gap, a manoeuvre, a drifting stretch to come) — the information of the offline one-shot tuner
-    (``oneshot_learned`` in ``bboxtune.agents.evaluation.retune_eval``), plus where in the track it is.
+    (``oneshot_learned`` in ``bboxtune.agents.retune_eval``), plus where in the track it is.
 
     ## Rewards
     The env's reward (as FilterTune-v0: ``rmse`` → log(RMSE_rule / RMSE), others action minus rule, against
@@ -98,9 +98,9 @@ class FilterRetuneEnv(TrackEnv):
     see if the track ended there).
 
     ## Starting State
-    As FilterTune-v0: ``reset(options={"sequence": ..., "noise_seed": ..., "tracker": ...})`` pins an
-    episode (the tracker drawn per episode from ``trackers``, a ``mix`` part per noise seed), arguments
-    and options are checked the same way, a rejected reset changes nothing, and reset's ``info`` is
+    As FilterTune-v0: ``reset(options={"sequence": ..., "noise_seed": ..., "tracker": ...})`` pins an episode (the
+    tracker drawn per episode from ``trackers``, a ``mix`` part — sim, otb, otb_tracker or mot — per noise seed),
+    arguments and options are checked the same way, a rejected reset changes nothing, and reset's ``info`` is
     ``{"track": {...}}`` without the true scenario. The first window is already filtered by the rule.
 
     Every episode has at least 2 windows (2·W frames: the warm-up and one step). ``sim`` and ``video``
@@ -122,9 +122,10 @@ class FilterRetuneEnv(TrackEnv):
 
     ## Arguments
     Those of FilterTune-v0 (``bboxtune.envs.episodes.config.EnvConfig``, checked the same way; ``trackers``, ``mix_weights``
-    and ``source="mix"`` included: every part of a mix draws episodes of at least two windows, and the sim
-    part's ``track_length`` must allow that); ``window``, ``history``, ``retune_reward`` and ``retune_view`` are used
-    here.
+    (the triple or the 4-tuple with the mot part), ``mot_root`` and ``source="mix"`` included: every part of a mix
+    draws episodes of at least two windows — the OTB and mot parts leave shorter sequences / identities out of
+    their pools — and the sim part's ``track_length`` must allow that); ``window``, ``history``, ``retune_reward``
+    and ``retune_view`` are used here.
     ``scenario="nonstationary"`` gives simulated tracks whose right parameters change within the track
     (regime switches of ψ and σ_ξ, manoeuvre bursts, occlusion gaps: :mod:`bboxtune.envs.data.sim_regimes`), where
     re-tuning has something to gain. ``detection_dropout``, ``miss_rate_range``, ``miss_run_range`` and
@@ -132,8 +133,7 @@ class FilterRetuneEnv(TrackEnv):
     FilterTune-v0 (a window may then hold few or no measurements; the drawn rates come with the last step's
     ``info["scenario"]``).
 
-    >>> import gymnasium as gym
-    >>> from bboxtune import envs
+    >>> import gymnasium as gym, envs
     >>> env = gym.make("bboxtune/FilterRetune-v0", backend="kf_cmn", track_length=200, window=50)
     >>> obs, info = env.reset(seed=1)
     >>> obs.shape
@@ -164,6 +164,9 @@ class FilterRetuneEnv(TrackEnv):
     * v0, offline view: ``retune_view="offline"`` adds the coming window's and the whole track's measurement
       features (shape + 40); the default ``"causal"`` observation is unchanged.
     * v0, detection errors (as FilterTune-v0; defaults off, no change to any episode).
+    * v0, MOT15 in the mix (as FilterTune-v0; earlier arguments' episodes unchanged bit for bit): ``mix_weights``
+      (sim, otb, otb_tracker, mot), ``mot_root`` with a positive mot weight; the sim part's ``sim_noise`` /
+      ``scenario`` with OTB weight.
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

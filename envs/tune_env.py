@@ -27,12 +27,13 @@ class FilterTuneEnv(TrackEnv):
     One episode is one track of bounding boxes: a simulated constant-velocity box with Gauss–Markov coloured
     measurement noise (``source="sim"``), OTB-100 ground truth corrupted with such noise (``"otb"``), a
     real tracker's OTB-100 output (``"otb_tracker"``; the tracker drawn per episode from ``trackers``), a
-    detector's boxes on a synthetic video (``"video"``) or, per episode, one of sim / otb / otb_tracker
-    drawn with ``mix_weights`` (``"mix"``: one policy for all three). The agent sees a summary of the *measurements*
-    and chooses the smoothing filter's
-    parameters (ψ, horizon N, noise scales) for the whole track; the filter (``backend``) then runs over the
-    track and the reward compares it with the fixed rule of the literature (N = N_opt(σ_v, σ_w, τ) with
-    nominal σ, ψ = ``nominal_psi``; for ``bytetrack_kf`` the stock ByteTrack filter) on the same measurements.
+    detector's boxes on a synthetic video (``"video"``), a MOT15 pedestrian measured by the public detections
+    matched to it (``"mot"``, :mod:`bboxtune.envs.episodes.mot_source`) or, per episode, one of sim / otb / otb_tracker /
+    mot drawn with ``mix_weights`` (``"mix"``: one policy for all of them). The agent sees a summary of the
+    *measurements* and chooses the smoothing filter's parameters (ψ, horizon N, noise scales) for the whole
+    track; the filter (``backend``) then runs over the track and the reward compares it with the fixed rule of
+    the literature (N = N_opt(σ_v, σ_w, τ) with nominal σ, ψ = ``nominal_psi``; for ``bytetrack_kf`` the stock
+    ByteTrack filter) on the same measurements.
 
     ## Action Space
     ``Box(-1, 1, (d,), float32)``, one entry per name in ``tune`` (default per back end:
@@ -94,26 +95,27 @@ class FilterTuneEnv(TrackEnv):
     strong tracker's output) the signal no longer carries the rule's large, episode-dependent loss.
 
     ## Starting State
-    ``reset`` draws an episode: for ``sim`` a scenario (ψ ~ U(psi_range), σ_w, σ_ξ log-uniform over their
-    ranges, τ ~ U(tau_range)) and its noise (``sim_noise="box"``: the ``otb`` source's box-relative CMN on the
-    simulated truth, σ_rel log-uniform over ``cmn_rel_range``, with the OTB sources' nominal σ); for OTB sources a
-    sequence of ``split`` (and for ``otb`` the
-    CMN level and ψ; for ``otb_tracker`` first the tracker, uniformly from ``trackers``, then a sequence it
-    has output for); for ``mix`` first the part (sim / otb / otb_tracker, probabilities ∝ ``mix_weights``),
-    then that part's episode of the same noise seed. ``reset(options={"sequence": name, "noise_seed": s,
-    "tracker": t})`` pins an episode (``sequence`` only for OTB and video sources and OTB parts of a mix,
-    ``tracker`` only for tracker episodes, one of the env's ``trackers``), so that different methods can be
-    compared on identical data; ``noise_seed`` is an integer >= 0, ``sequence`` and ``tracker`` a str (None
-    = not given); another key, type or value raises ``ValueError`` / ``TypeError`` naming the option, as
-    does a ``seed`` that is not None or an integer >= 0. A rejected reset changes nothing: the env keeps
-    its current episode and ``np_random``. ``env.unwrapped.source.sequences`` and ``.trackers`` list what an
-    OTB source draws from (``sequences_of(tracker)``: one tracker's sequences; MEEM and MUSTer lack 27).
+    ``reset`` draws an episode: for ``sim`` a scenario (ψ ~ U(psi_range), σ_w, σ_ξ log-uniform over their ranges, τ
+    ~ U(tau_range)) and its noise (``sim_noise="box"``: the ``otb`` source's box-relative CMN on the simulated
+    truth, σ_rel log-uniform over ``cmn_rel_range``, with the OTB sources' nominal σ); for OTB sources a sequence of
+    ``split`` (and for ``otb`` the CMN level and ψ; for ``otb_tracker`` first the tracker, uniformly from
+    ``trackers``, then a sequence it has output for); for ``mot`` an identity of ``split`` (``"<sequence>/<id>"``);
+    for ``mix`` first the part (sim / otb / otb_tracker / mot, probabilities ∝ ``mix_weights``), then that part's
+    episode of the same noise seed. ``reset(options={"sequence": name, "noise_seed": s, "tracker": t})`` pins an
+    episode (``sequence`` only for OTB, MOT and video sources and the OTB and MOT parts of a mix, ``tracker`` only
+    for tracker episodes, one of the env's ``trackers``), so that different methods can be compared on identical
+    data; ``noise_seed`` is an integer >= 0, ``sequence`` and ``tracker`` a str (None = not given); another key,
+    type or value raises ``ValueError`` / ``TypeError`` naming the option, as does a ``seed`` that is not None or an
+    integer >= 0. A rejected reset changes nothing: the env keeps its current episode and ``np_random``.
+    ``env.unwrapped.source.sequences`` and ``.trackers`` list what an OTB source draws from
+    (``sequences_of(tracker)``: one tracker's sequences; MEEM and MUSTer lack 27).
 
     ``reset``'s ``info`` is ``{"track": {...}}``: what identifies the episode — ``sequence``, ``noise_seed``,
     ``tau`` (also in the observation), ``tracker`` for ``otb_tracker``, ``detector`` and ``n_missing``
-    (frames without a detection, visible in the measurements) for ``video``, ``source`` (the part) for
-    ``mix`` — never the true scenario, which is revealed only in the step's ``info["scenario"]`` (see
-    Episode End).
+    (frames without a detection, visible in the measurements) for ``video``, ``first_frame`` (and ``stride`` /
+    ``offset`` on the train split with ``otb_speedup_max`` > 1) for ``mot``, ``source`` (the part: ``"sim"``,
+    ``"otb"``, ``"otb_tracker"`` or ``"mot"``) for ``mix`` — never the true scenario, which is revealed only in
+    the step's ``info["scenario"]`` (see Episode End).
 
     Every episode is a pure function of its noise seed (and sequence, tracker); without options the seed is
     the next draw from ``np_random``; the sequence, tracker and mix part come from independent generators
@@ -129,14 +131,14 @@ class FilterTuneEnv(TrackEnv):
     episode, not a block); a pinned episode is prepared alone and leaves the block as it is.
 
     ## Episode End
-    After one step: ``terminated=True``, ``truncated=False``. ``info`` then holds, for the action and for
-    the rule on the same episode: ``rmse``/``rule_rmse``, ``iou_mean``, ``success_auc``,
-    ``precision20``, ``iou_precision`` (each also with a ``rule_`` prefix), ``n_frames``, ``params`` and
-    ``rule_params`` (the physical parameters applied), ``track`` (as at reset) and ``scenario``: the truth,
-    now that the decision is made — ``psi``, ``sigma_w`` (px/s²), ``sigma_xi`` (px) for ``sim``; ``psi``,
-    ``sigma_rel`` for ``otb``; empty for ``otb_tracker`` and ``video``; the part's for ``mix``. ``env.unwrapped.score(actions)``
-    scores many actions (A, d) on the current episode in one vectorised call and returns the same keys as
-    arrays (A,) plus ``reward``. A step after the end raises ``RuntimeError`` (call ``reset``).
+    After one step: ``terminated=True``, ``truncated=False``. ``info`` then holds, for the action and for the rule
+    on the same episode: ``rmse``/``rule_rmse``, ``iou_mean``, ``success_auc``, ``precision20``, ``iou_precision``
+    (each also with a ``rule_`` prefix), ``n_frames``, ``params`` and ``rule_params`` (the physical parameters
+    applied), ``track`` (as at reset) and ``scenario``: the truth, now that the decision is made — ``psi``,
+    ``sigma_w`` (px/s²), ``sigma_xi`` (px) for ``sim``; ``psi``, ``sigma_rel`` for ``otb``; empty for
+    ``otb_tracker``, ``video`` and ``mot``; the part's for ``mix``. ``env.unwrapped.score(actions)`` scores many
+    actions (A, d) on the current episode in one vectorised call and returns the same keys as arrays (A,) plus
+    ``reward``. A step after the end raises ``RuntimeError`` (call ``reset``).
 
     ## Arguments
     Keyword arguments of ``gym.make`` are the fields of ``bboxtune.envs.episodes.config.EnvConfig`` plus ``render_mode``
@@ -153,18 +155,27 @@ class FilterTuneEnv(TrackEnv):
     ``trackers`` (``otb_tracker``, ``mix``): the tracker names an episode's tracker is drawn from (each must
     exist under the OTB root; None → ``(tracker,)``, the single-tracker env of before). The default tracker
     split is ``bboxtune.envs.data.otb.TRACKER_SPLIT``: ``"test"`` = SiamRPN++, CFNet, STRUCK, MDNet (held out, never
-    trained on), ``"train"`` = the other 9. ``mix_weights`` (sim, otb, otb_tracker), default (1, 1, 1):
-    each part's relative probability (reals >= 0, sum > 0; a part of weight 0 is never drawn and needs no
-    data — OTB parts need ``otb_root`` / $OTB_ROOT). Arguments the source would not use are refused, not
-    ignored: ``trackers`` with another source (or with ``mix_weights[2] == 0``), ``mix_weights`` other than
-    the default without ``source="mix"``. Observation and action spaces do not depend on the source.
+    trained on), ``"train"`` = the other 9. ``mix_weights``, a (sim, otb, otb_tracker) triple or a (sim, otb,
+    otb_tracker, mot) 4-tuple, default (1, 1, 1): each part's relative probability (reals >= 0, sum > 0; a triple
+    is mot weight 0 and draws the episodes it drew before the mot part existed, bit for bit; a 4-tuple whose mot
+    weight is 0 is stored as that triple). A part of weight 0 is never drawn and needs no data — OTB parts need
+    ``otb_root`` / $OTB_ROOT, the mot part ``mot_root`` / $MOT_ROOT (MOT15: the identities of ``split``, the
+    OTB split rule by sequence, ``bboxtune.envs.data.mot.split``). Each part draws with the settings it takes
+    (``bboxtune.envs.episodes.config.mix_part``): the sim settings and ``sim_noise`` / ``scenario`` only the sim part,
+    ``otb_speedup_max`` the OTB and mot parts, the detection errors the sim, otb and otb_tracker parts — never
+    the mot part, whose real detections keep their own misses. Arguments the source would not use are refused,
+    not ignored: ``trackers`` with another source (or with ``mix_weights[2] == 0``), ``mix_weights`` other than
+    the default without ``source="mix"``, ``mot_root`` without source ``mot`` or a positive mot weight
+    (``mix_weights[3]``), detection errors with a mix of the mot part alone. Observation and action spaces do
+    not depend on the source.
 
-    ``otb_speedup_max`` (OTB sources and OTB parts of a mix; default 1: off): on the **train split only**, each
-    episode plays every k-th frame of its sequence, k uniform in [1, otb_speedup_max] and a random offset,
-    at the same τ — the same object moving k times as far per frame, an augmentation for motion faster than
-    the training sequences show (a tuner that has only seen slow objects smooths fast ones away); k is lowered
-    where fewer than 64 frames would remain. ``info["track"]`` then adds ``stride`` and ``offset``; val and test
-    episodes (evaluation, model selection) always play every frame.
+    ``otb_speedup_max`` (OTB sources, ``mot``, the OTB and mot parts of a mix; default 1: off): on the **train split
+    only**, each episode plays every k-th frame of its sequence, k uniform in [1, otb_speedup_max] and a random
+    offset, at the same τ — the same object moving k times as far per frame, an augmentation for motion faster than
+    the training sequences show (a tuner that has only seen slow objects smooths fast ones away); k is lowered where
+    fewer than 64 frames would remain. ``info["track"]`` then adds ``stride`` and ``offset``; val and test episodes
+    (evaluation, model selection) always play every frame. With source ``mot`` and the mot part of a mix the stride
+    plays the identity at fps / k with τ = k / fps (:mod:`bboxtune.envs.episodes.mot_source`).
 
     ``scenario`` (sim, and the sim part of a mix, with ``motion="cv"``): ``"stationary"`` (default) draws one ψ,
     σ_w, σ_ξ per track; ``"nonstationary"`` keeps that draw as the first regime and adds, within the track,
@@ -174,28 +185,27 @@ class FilterTuneEnv(TrackEnv):
     ``info["scenario"]`` (``regimes``, ``manoeuvres``, ``gaps``; ``psi`` / ``sigma_xi`` there are the
     frame-weighted mean ψ and rms σ_ξ), never in the observation.
 
-    Detection errors (sources ``sim``, ``otb``, ``otb_tracker`` and every part of ``mix``; refused with ``video``
-    and ``mot``, whose detectors miss already), to train on what a real detection stream looks like (MOT15
-    public detections miss 44 % of a pedestrian's frames on average, in runs of median 2 and up to 214 frames,
-    and sometimes match a wrong box): ``detection_dropout`` — ``"none"`` (default), ``"bernoulli"`` (each frame
-    missed independently at the episode's miss rate) or ``"runs"`` (a Gilbert–Elliott chain: miss runs of mean
-    length L frames, the stationary miss fraction equal to the rate; L is raised to rate / (1 − rate) where it
-    could not reach it) — with the rate uniform in ``miss_rate_range`` (default (0, 0.6), within [0, 0.95]) and
-    L log-uniform in ``miss_run_range`` (default (1, 20), within [1, 1000]; ``"runs"`` only); and
-    ``outlier_rate_range`` (default (0, 0): off, within [0, 0.5]), the per-episode probability, uniform, that a
-    measured frame (with ground truth) shows a nearby object's box instead: the true box's size × a log-normal
-    factor (log std 0.3), its centre 0.5–2 box heights away in a random direction (any ``detection_dropout``).
-    A missed frame is a NaN row of the measurements (the filters predict through it; the truth is scored as
-    before); the first and last measured frames always stay. The errors come from the episode's own generator
-    ``(noise_seed, 5)`` (``bboxtune.envs.episodes.sources``): the episode is still a pure function of its seed, and the
-    nominal σ of the OTB sources and ``sim_noise="box"`` come from the measurements left. The drawn
+    Detection errors (sources ``sim``, ``otb``, ``otb_tracker`` and those parts of ``mix``; never the mot part of a
+    mix; refused with ``video``, ``mot`` and a mix of the mot part alone, whose detectors miss already), to train on
+    what a real detection stream looks like (MOT15 public detections miss 44 % of a pedestrian's frames on average,
+    in runs of median 2 and up to 214 frames, and sometimes match a wrong box): ``detection_dropout`` — ``"none"``
+    (default), ``"bernoulli"`` (each frame missed independently at the episode's miss rate) or ``"runs"`` (a
+    Gilbert–Elliott chain: miss runs of mean length L frames, the stationary miss fraction equal to the rate; L is
+    raised to rate / (1 − rate) where it could not reach it) — with the rate uniform in ``miss_rate_range`` (default
+    (0, 0.6), within [0, 0.95]) and L log-uniform in ``miss_run_range`` (default (1, 20), within [1, 1000];
+    ``"runs"`` only); and ``outlier_rate_range`` (default (0, 0): off, within [0, 0.5]), the per-episode
+    probability, uniform, that a measured frame (with ground truth) shows a nearby object's box instead: the true
+    box's size × a log-normal factor (log std 0.3), its centre 0.5–2 box heights away in a random direction (any
+    ``detection_dropout``). A missed frame is a NaN row of the measurements (the filters predict through it; the
+    truth is scored as before); the first and last measured frames always stay. The errors come from the episode's
+    own generator ``(noise_seed, 5)`` (``bboxtune.envs.episodes.sources``): the episode is still a pure function of its seed,
+    and the nominal σ of the OTB sources and ``sim_noise="box"`` come from the measurements left. The drawn
     ``miss_rate``, ``miss_run`` and ``outlier_rate`` are revealed in the step's ``info["scenario"]``; the
-    observation's fraction of missing frames shows what was missed. Details: :mod:`bboxtune.envs.data.sim_detections`.
-    A range that would not be used is refused, not ignored (``miss_rate_range`` without dropout,
-    ``miss_run_range`` without ``"runs"``).
+    observation's fraction of missing frames shows what was missed. Details: :mod:`bboxtune.envs.data.sim_detections`. A
+    range that would not be used is refused, not ignored (``miss_rate_range`` without dropout, ``miss_run_range``
+    without ``"runs"``).
 
-    >>> import gymnasium as gym
-    >>> from bboxtune import envs
+    >>> import gymnasium as gym, envs
     >>> env = gym.make("bboxtune/FilterTune-v0", backend="ufir_cmn", source="sim", track_length=300)
     >>> obs, info = env.reset(seed=0)
     >>> obs.shape, env.action_space.shape, sorted(info["track"])
@@ -235,6 +245,11 @@ class FilterTuneEnv(TrackEnv):
     * v0, detection errors: ``detection_dropout``, ``miss_rate_range``, ``miss_run_range``, ``outlier_rate_range``
       (defaults: none, no change to any episode, checked bit for bit); ``info["scenario"]`` adds the drawn
       ``miss_rate`` / ``miss_run`` / ``outlier_rate`` when they are on.
+    * v0, MOT15 in the mix (no change to any episode of the earlier arguments, checked bit for bit against the
+      code before, ``tests/envs/test_mix_mot.py``): ``mix_weights`` takes a (sim, otb, otb_tracker, mot) 4-tuple,
+      ``mot_root`` a mix with a positive mot weight, ``info["track"]["source"]`` is ``"mot"`` for its episodes; a
+      mix with ``sim_noise="box"`` or ``scenario="nonstationary"`` and OTB weight, refused before by its OTB parts'
+      configs, draws them (the sim part's settings; ``bboxtune.envs.episodes.config.mix_part``).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

@@ -18,20 +18,23 @@ split × --seeds-per-sequence noise seeds, "otb_tracker" every sequence × every
 output has no noise seed). --seed also seeds the baselines' training episodes, Optuna, the regressor and the
 bootstrap.
 
-Methods (bboxtune.agents.policies.baselines, bboxtune.agents.policies.adaptive): raw (the measurements themselves, no filter; a frame without a
+Methods (bboxtune.agents.policies.baselines, bboxtune.agents.policies.adaptive): raw (the measurements themselves, no
+filter; a frame without a
 measurement is scored as a missing estimate: a failure for success AUC / precision, left out of the RMSE),
 bytetrack_kf and sort_kf (the box filters ByteTrack / DeepSORT and SORT ship, published settings), rule
 (bytetrack_kf: stock ByteTrack), rule_est_sigma, rule_true_sigma (sim only; neither for bytetrack_kf), oracle
 (per-episode search maximising the env's reward with the truth), oracle_auc (maximising success AUC; oracle_rmse,
 minimising RMSE, when the reward is not RMSE), global, amortised, adaptive, the trained model (named by its
 algorithm, e.g. ppo) and its best-on-validation checkpoint (<algo>_best); with --gate also each final model gated
-(<algo>_gated, bboxtune.agents.evaluation.gate: its action where a ridge regressor predicts that it beats the raw measurements by more
+(<algo>_gated, bboxtune.agents.evaluation.gate: its action where a ridge regressor predicts that it beats the raw
+measurements by more
 than a margin chosen on val episodes; elsewhere the measurements left alone, scored as raw; each fitted gate is
 written to gates/<name>.json, for smooth.py --gate). All methods see the same episodes (common random numbers);
 global and amortised are fitted on train-split episodes of the evaluation env, the gates on train- and val-split
 episodes of the run's own env (so a transfer evaluation stays one).
 
-Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by bboxtune.agents.evaluation.retune_eval instead: raw, rule (every
+Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by bboxtune.agents.evaluation.retune_eval
+instead: raw, rule (every
 window), oneshot_oracle (the best single action for the track, with the truth), oneshot_learned (--oneshot-model
 RUN_DIR: a FilterTune-v0 run's action for the whole track, chosen seeing the whole track; left out without it) and
 oneshot_learned_online (the same model choosing from the warm-up window only), window_oracle (greedy per-window
@@ -71,7 +74,8 @@ scored on the same episodes as <algo>_s<seed> / <algo>_best_s<seed> beside one s
 adds their IQM and mean across seeds with stratified bootstrap CIs (rliable's estimator, bboxtune.agents.evaluation.seeds_report)
 and, for FilterTune-v0 runs, performance_profile.png. The run's models are loaded without unpickling anything and
 checked against its config.yml (bboxtune.agents.training.safe_load) and against the evaluation env before any baseline is fitted;
-an input that never varied in a model's training is held at its training value (bboxtune.agents.training.runs.hold_constant_features)
+an input that never varied in a model's training is held at its training value
+(bboxtune.agents.training.runs.hold_constant_features)
 and summary.md names those inputs;
 an old run whose statistics are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can
 run code: only for runs you trust). Bad arguments or run files: one line naming them, exit status 2.

@@ -1,7 +1,10 @@
-"""The FilterRetune-v0 part of ``scripts/compare.py``: the re-tuning methods (bboxtune.agents.evaluation.retune_eval), the per-window
-regressors it fits (bboxtune.agents.evaluation.window_regressor, ``--fit-seeds``; anchored at the one-shot model with its margin chosen on
+"""The FilterRetune-v0 part of ``scripts/compare.py``: the re-tuning methods
+(bboxtune.agents.evaluation.retune_eval), the per-window
+regressors it fits (bboxtune.agents.evaluation.window_regressor, ``--fit-seeds``; anchored at the one-shot model with
+its margin chosen on
 val episodes, ``--val-episodes`` / ``--anchor-margin``), the one-shot model it loads (``--oneshot-model``), and
-the summary with the one-shot → per-window gap (bboxtune.agents.evaluation.report_retune), and the flags only these comparisons take
+the summary with the one-shot → per-window gap (bboxtune.agents.evaluation.report_retune), and the flags only these
+comparisons take
 (:func:`add_retune_arguments`, :func:`check_retune_flags`, :func:`check_regime_source`). compare.py parses the arguments."""
 
 from __future__ import annotations
@@ -204,7 +207,8 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                    episodes_described: tuple[list[EpisodeSpec], str],
                    models: tuple[list[SB3Policy], dict[str, list[str]], str], oneshot: OneShotLearned | None, out: Path,
                    command: str) -> Path:
-    """The FilterRetune-v0 comparison (bboxtune.agents.evaluation.retune_eval) of compare.py's parsed ``args``: the test env, the train
+    """The FilterRetune-v0 comparison (bboxtune.agents.evaluation.retune_eval) of compare.py's parsed ``args``: the
+    test env, the train
     env (the regressors' episodes) and their kwargs, the test episodes with their description for summary.md, the
     run(s)' models with their groups across training seeds and description, and ``--oneshot-model``; writes
     results.csv, summary.md and the figures in ``out``."""

@@ -3,7 +3,8 @@
     python scripts/mot_fit.py --mot-root ../shared/data/mot15 --out docs/results/mot15_noise [--episodes 500] [--seed 0]
 
 Loads the MOT15 identity episodes (:mod:`bboxtune.envs.data.mot`, ``--mot-root`` else ``$MOT_ROOT``), fits
-``bboxtune/FilterTune-v0`` kwargs of a "sim" env to the train split (:func:`bboxtune.agents.evaluation.mot_fit.fit_sim_kwargs`, whose
+``bboxtune/FilterTune-v0`` kwargs of a "sim" env to the train split
+(:func:`bboxtune.agents.evaluation.mot_fit.fit_sim_kwargs`, whose
 docstring gives every choice), draws ``--episodes`` episodes of that env (noise seeds ``--seed`` …) and measures
 them like the MOT identities (:func:`bboxtune.agents.evaluation.mot_fit.measure_sim`). Writes into ``--out`` (created; an existing
 folder must not hold these files), each atomically: ``fit.md`` (the table statistic | MOT train | MOT val |

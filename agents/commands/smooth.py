@@ -18,7 +18,8 @@ sequence must have at least 8 frames, 2 of them with a box.
 name, x,y,w,h with 3 decimals per line, one line per input line: the back end's smoothed boxes. Frames
 without a box in the input are predicted from the others; frames before the first box, and any frame whose
 smoothed w or h is <= 0, are written 0,0,0,0 (counted in params.csv). A gated tuner (--gate FILE, a gate that
-compare.py --gate fitted for this tuner, or a gate.json in the tuner's folder unless --no-gate; bboxtune.agents.evaluation.gate) writes
+compare.py --gate fitted for this tuner, or a gate.json in the tuner's folder unless --no-gate;
+bboxtune.agents.evaluation.gate) writes
 a sequence where its gate stays closed as read instead. params.csv: sequence, n_frames, n_missing_in,
 n_missing_out, left_alone (1: written as read) and the chosen parameters (e.g. psi, horizon; exact values; what the
 model sets, also where the sequence is left alone). With --otb-root the sequences found there are scored, raw and

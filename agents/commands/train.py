@@ -160,10 +160,10 @@ def parse_args(argv: list[str] | None = None, parser: ArgumentParser | None = No
 
 
 def draws_trackers(source: str, env_kwargs: dict[str, Any]) -> bool:
-    """Whether episodes replay tracker output: source otb_tracker, or mix with a tracker weight (mix_weights[2])
-    that is not 0 (a malformed value is left to EnvConfig's check)."""
+    """Whether episodes replay tracker output: source otb_tracker, or mix with a tracker weight (mix_weights[2], of
+    the triple or the 4-tuple with mot) that is not 0 (a malformed value is left to EnvConfig's check)."""
     weights = env_kwargs.get("mix_weights", (1.0, 1.0, 1.0))
-    no_trackers = isinstance(weights, (list, tuple)) and len(weights) == 3 and weights[2] == 0
+    no_trackers = isinstance(weights, (list, tuple)) and len(weights) in (3, 4) and weights[2] == 0
     return source == "otb_tracker" or (source == "mix" and not no_trackers)
 
 
@@ -239,7 +239,8 @@ def check_new_model(cfg: dict[str, Any], hp: Hyperparams, venv: VecEnv, where: s
 
 
 def checkpoint_check(cfg: dict[str, Any], hp: Hyperparams, venv: VecEnv, trust_pickle: bool):
-    """``check(folder)`` for :func:`bboxtune.agents.training.checkpoints.newest_complete`: the model, its statistics and (off-policy)
+    """``check(folder)`` for :func:`bboxtune.agents.training.checkpoints.newest_complete`: the model, its statistics
+    and (off-policy)
     its replay buffer load and fit the run's env."""
 
     def check(folder: Path) -> None:

@@ -10,7 +10,8 @@ measurements themselves (no filter), the box Kalman filters trackers ship with t
 identical data
 (common random numbers).
 
-A policy that leaves an episode alone (``Policy.leaves_alone``: the gated tuners of :mod:`bboxtune.agents.evaluation.gate`) is scored
+A policy that leaves an episode alone (``Policy.leaves_alone``: the gated tuners of
+:mod:`bboxtune.agents.evaluation.gate`) is scored
 there on the measurements themselves, exactly as ``raw``, with NaN parameters.
 
 ``raw`` and missing measurements: a frame without a measurement (a NaN row of ``y``, e.g. a tracker that lost

@@ -19,8 +19,10 @@ on:
    the predicted gains there (opening the top 10, 25, 50, 75 or 90 % of val episodes) and ±∞. Ties go to the larger
    margin, which leaves more episodes alone. +∞ leaves every episode alone; −∞ is the model itself.
 
-A fitted gate is plain numbers (:mod:`bboxtune.agents.policies.gate_file`): ``compare.py --gate`` writes each to ``gates/<name>.json``,
-and ``smooth.py`` / :class:`bboxtune.agents.smoothing.tuner.Tuner` apply one (``--gate FILE``, or ``gate.json`` in the tuner's folder).
+A fitted gate is plain numbers (:mod:`bboxtune.agents.policies.gate_file`): ``compare.py --gate`` writes each to
+``gates/<name>.json``,
+and ``smooth.py`` / :class:`bboxtune.agents.smoothing.tuner.Tuner` apply one (``--gate FILE``, or ``gate.json`` in
+the tuner's folder).
 
 Ridge rather than the MLPs of the other regressors: the gains are of order 1e-4 AUC and noisy. Prototype fits on
 train episodes of the pretrained ``otb_tracker_kf_cmn`` (mean gain +0.0005 AUC over KF-CMN's trust-the-measurement

@@ -4,7 +4,8 @@ and the best action per true regime state, chosen with the truth (``regime_oracl
 
 On non-stationary simulated tracks (``scenario="nonstationary"``, :mod:`bboxtune.envs.data.sim_regimes`) the right filter
 parameters change with the noise regime (ψ, σ_ξ), the manoeuvre bursts and the occlusion gaps. This tuner is
-``window_amortised`` (:mod:`bboxtune.agents.evaluation.window_regressor`: the same candidates, behaviour policy, ensemble and fit) whose
+``window_amortised`` (:mod:`bboxtune.agents.evaluation.window_regressor`: the same candidates, behaviour policy,
+ensemble and fit) whose
 observation is followed by the true schedule around the coming window — no measurement-only tuner can know more
 about the regimes — so its share of the one-shot → per-window gap is what the same learner reaches knowing every
 regime boundary and level; the rest of the per-window oracle's lead is out of reach of any tuner that only knows
@@ -13,7 +14,8 @@ the regimes. It uses the truth at test (``truth_at_test`` "regimes (truth)") and
 ``regime_oracle`` (:class:`RegimeOracle`) splits the frames after the warm-up into true regime states — noise regime ×
 in a manoeuvre × in a gap (:func:`regime_states`) — gives each window the state most of its frames are in, and plays
 in every window of a state the action with the lowest squared error, against the truth, summed over that state's
-windows: the oracles' grid search (:class:`bboxtune.agents.policies.baselines.GridSearch`, the rule's action a candidate, then local
+windows: the oracles' grid search (:class:`bboxtune.agents.policies.baselines.GridSearch`, the rule's action a
+candidate, then local
 refinements), each candidate held over the rest of the track in one run (``env.unwrapped.score_rest``). For the FIR family a
 window's estimates do not depend on earlier windows' parameters, so the pooled errors are exactly those of the
 windows played; for the Kalman family the state carries over and they are an approximation. It is what a tuner that

@@ -10,7 +10,8 @@ Definitions (per test episode e, method m; RMSE in px over all frames of (cx, cy
 * Δ AUC      success AUC_m,e − success AUC_ref,e (ref = ``raw`` or ``rule``), precision@20px likewise.
 
 Confidence intervals are 95 % percentile bootstraps, paired across methods, over *clusters* of episodes
-(:func:`bboxtune.agents.evaluation.stats.cluster_bootstrap_indices`): the sequence of an episode (an OTB sequence with all its noise
+(:func:`bboxtune.agents.evaluation.stats.cluster_bootstrap_indices`): the sequence of an episode (an OTB sequence
+with all its noise
 seeds and trackers, a synthetic video with all its episodes), or the episode itself when it has none (sim). The
 summary names the resampled unit and the number of clusters. Sources other than sim add success-AUC / precision
 tables against ``raw`` and ``rule``; OTB sources per-attribute success-AUC deltas (:mod:`bboxtune.agents.evaluation.report_otb`)

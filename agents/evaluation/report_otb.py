@@ -1,4 +1,5 @@
-"""Tables of ``summary.md`` for real-data sources (:mod:`bboxtune.agents.evaluation.report`): success AUC and precision@20px against
+"""Tables of ``summary.md`` for real-data sources (:mod:`bboxtune.agents.evaluation.report`): success AUC and
+precision@20px against
 ``raw`` (the measurements) and ``rule`` with cluster-bootstrap CIs, their deltas per OTB attribute, and rows
 per tracker for source "otb_tracker".
 

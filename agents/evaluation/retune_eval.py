@@ -21,12 +21,14 @@ frames after it, [W, T) (W = ``window``; the raw measurements and the adaptive K
 * ``adaptive`` — the Sage–Husa innovation-adaptive KF (:mod:`bboxtune.agents.policies.adaptive`), no tuning, no truth;
 * ``imm`` — an IMM over two KF tunings (the nominal σ_w and 10 × it, :mod:`bboxtune.agents.policies.imm`), no tuning, no truth;
 * ``window_amortised`` — a learned sequential tuner without RL: per window, the candidate whose log RMSE on the
-  coming window a regressor of the observation predicts lowest (:mod:`bboxtune.agents.evaluation.window_regressor`, fitted on train
+  coming window a regressor of the observation predicts lowest (:mod:`bboxtune.agents.evaluation.window_regressor`,
+  fitted on train
   episodes by ``scripts/compare.py``), played with :class:`Sequential`;
 * the trained sequential tuner (named by its algorithm, e.g. ``ppo``).
 
 Per method and episode: RMSE (px) over the scored frames, success AUC, precision@20, and the log-ratio
-log(RMSE_rule / RMSE) — the same records as :mod:`bboxtune.agents.evaluation.evaluate`, so :mod:`bboxtune.agents.evaluation.report` writes the tables.
+log(RMSE_rule / RMSE) — the same records as :mod:`bboxtune.agents.evaluation.evaluate`, so
+:mod:`bboxtune.agents.evaluation.report` writes the tables.
 """
 
 from __future__ import annotations

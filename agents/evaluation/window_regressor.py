@@ -25,7 +25,8 @@ probability ``explore`` and the window's best candidate (known from the labels) 
 finite (no ground truth in the window) are left out.
 
 ``window_anchored`` (:class:`AnchoredWindowPolicy`) starts from a one-shot tuner's action for the track (the
-anchor: a FilterTune-v0 model's, ``bboxtune.agents.evaluation.retune_eval.OneShotLearned``) and leaves it in a window only where the
+anchor: a FilterTune-v0 model's, ``bboxtune.agents.evaluation.retune_eval.OneShotLearned``) and leaves it in a window
+only where the
 regressor predicts a candidate's log RMSE below the anchor's by more than a margin. For it the anchor is one more
 candidate in every training window (its log RMSE a further output), and the margin is chosen on validation
 episodes (:func:`select_margin`, ties to the larger margin); an infinite margin is the one-shot tuner itself. An
@@ -223,7 +224,8 @@ class AnchoredWindowPolicy(Policy):
 def select_margin(policy: AnchoredWindowPolicy, env: gym.Env, episodes: Sequence[EpisodeSpec],
                   margins: Sequence[float]) -> tuple[float, dict[float, float]]:
     """The margin of ``margins`` with the highest mean log-ratio against the rule of ``policy`` (its anchor of
-    ``env``'s split) on the validation ``episodes`` of ``env``, scored as ``bboxtune.agents.evaluation.retune_eval.evaluate_retune`` scores
+    ``env``'s split) on the validation ``episodes`` of ``env``, scored as
+    ``bboxtune.agents.evaluation.retune_eval.evaluate_retune`` scores
     a test (ties: the larger margin), and every margin's mean."""
     methods = [Sequential(RulePolicy()), *(Sequential(policy.with_anchor(policy.anchor, m), name=f"margin {m:g}")
                                            for m in margins)]

@@ -1,7 +1,9 @@
-"""A fitted gate (:mod:`bboxtune.agents.evaluation.gate`) as plain numbers: the linear gain predictor and its margin, kept in a JSON file.
+"""A fitted gate (:mod:`bboxtune.agents.evaluation.gate`) as plain numbers: the linear gain predictor and its margin,
+kept in a JSON file.
 
 ``compare.py --gate`` writes one per gated model (``gates/<name>.json`` in its output folder). ``smooth.py --gate FILE``
-and ``bboxtune.agents.smoothing.tuner.Tuner`` read one, and a tuner folder holding a ``gate.json`` beside ``model.zip`` is gated when loaded.
+and ``bboxtune.agents.smoothing.tuner.Tuner`` read one, and a tuner folder holding a ``gate.json`` beside
+``model.zip`` is gated when loaded.
 The gate opens (the tuner's parameters are used) where ``((obs − mean) / scale) · coef + intercept > margin``; elsewhere
 the track is left as measured. This module needs numpy only, so ``import agents`` stays light.
 
@@ -61,7 +63,8 @@ def write_gate(path: Path | str, gate: Gate, about: str) -> None:
 
 
 def read_gate(path: Path | str, n_features: int) -> Gate:
-    """The gate in the JSON file ``path`` (read as :func:`bboxtune.agents.readers.read_json` reads: bounded, strict) for a tuner of
+    """The gate in the JSON file ``path`` (read as :func:`bboxtune.agents.readers.read_json` reads: bounded, strict)
+    for a tuner of
     ``n_features`` observation features; ValueError naming the file and the field that is missing or malformed."""
     doc = read_json(Path(path))
     if not isinstance(doc, dict):

@@ -12,8 +12,10 @@ a MOT result line is ``frame, id, x, y, w, h, score, X, Y, Z`` (trackers write -
   without a row are gaps (NaN rows of ``boxes``). The tracks of one file may span at most :data:`MAX_SPAN_FRAMES`
   frames in all (the output's row bound).
 * **Smoothing** (:func:`smooth_track`): each track on its own, with the parameters the tuner chooses from that
-  track's boxes alone (:meth:`bboxtune.agents.smoothing.tuner.Tuner.observe`, ``params``, ``smooth``). A track shorter than the tuner's
-  minimum (:data:`bboxtune.agents.smoothing.tuner.MIN_FRAMES` frames, :data:`bboxtune.agents.smoothing.tuner.MIN_MEASURED` rows) is not
+  track's boxes alone (:meth:`bboxtune.agents.smoothing.tuner.Tuner.observe`, ``params``, ``smooth``). A track
+  shorter than the tuner's
+  minimum (:data:`bboxtune.agents.smoothing.tuner.MIN_FRAMES` frames,
+  :data:`bboxtune.agents.smoothing.tuner.MIN_MEASURED` rows) is not
   tuned, and a track
   where a gated tuner's gate stays closed is not smoothed: both are written as read.
 * **Output rows** (:func:`track_rows`, :func:`file_text`): a smoothed track gets one row per frame of its span,

@@ -7,7 +7,8 @@ Each tuner is a folder ``agents/pretrained/<name>/`` holding the files of a ``sc
     vecnormalize.json   its observation statistics (bboxtune.agents.training.run_files)
     config.yml          the run's config: env id and env kwargs (source, back end), algorithm, hyperparameters
     summary.md          the compare.py summary it reached (test split of its env)
-    gate.json           optional: its learned gate (bboxtune.agents.policies.gate_file; compare.py --gate), applied when it is loaded
+    gate.json           optional: its learned gate (bboxtune.agents.policies.gate_file; compare.py --gate), applied
+    when it is loaded
 
 Names are the folders found there (``<source>_<backend>``, e.g. ``sim_ufir_cmn``; ``otb_tracker_<backend>`` for
 tracker output); a folder is added by copying a run's ``model.zip``, ``vecnormalize.json`` and ``config.yml``

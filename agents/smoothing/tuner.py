@@ -111,10 +111,11 @@ def check_tau(tau: Any) -> float:
 def rule_nominal(cfg: EnvConfig, y: np.ndarray, tau: float) -> Nominal:
     """The fixed rule's parameters that the source of ``cfg`` gives a track of measurements ``y`` (T, 4)
     (cx, cy, w, h px; NaN = missing) at frame interval ``tau``: ``sim`` its nominal σ (the centres of the
-    config's σ ranges); ``video`` the detector's relative σ × the measured box scale; ``otb``, ``otb_tracker``
-    (and a mixed source, whose real-data episodes use it) ``otb_sigma_v_rel`` / ``otb_sigma_w_rel`` × the
-    measured box scale; then N = N_opt(σ_v, σ_w, τ) within [K, horizon_max] and ψ = ``nominal_psi``."""
-    if cfg.source == "sim":
+    config's σ ranges; with ``sim_noise="box"`` the OTB sources' rule below, as its episodes have it); ``video``
+    the detector's relative σ × the measured box scale; ``otb``, ``otb_tracker``, ``mot`` (and a mixed source,
+    whose real-data episodes use it) ``otb_sigma_v_rel`` / ``otb_sigma_w_rel`` × the measured box scale; then
+    N = N_opt(σ_v, σ_w, τ) within [K, horizon_max] and ψ = ``nominal_psi``."""
+    if cfg.source == "sim" and cfg.sim_noise == "absolute":
         sim = SimSource(cfg)
         return source_nominal(cfg, sim.sigma_v_nominal, sim.sigma_w_nominal, tau)
     if cfg.source == "video":
@@ -240,7 +241,8 @@ class Tuner:
 
 
 def load_pretrained(name: str) -> Tuner:
-    """The pretrained tuner ``name`` (:mod:`bboxtune.agents.smoothing.pretrained`; ValueError listing the available ones or naming a
+    """The pretrained tuner ``name`` (:mod:`bboxtune.agents.smoothing.pretrained`; ValueError listing the available
+    ones or naming a
     missing file), cached per process and folder (the files are package data)."""
     return _load_folder(name, pretrained.folder(name))
 

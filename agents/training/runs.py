@@ -10,7 +10,8 @@ A run directory written by ``scripts/train.py`` holds only data files (nothing i
     best_model.zip        best on the val split;    best_vecnormalize.json  the statistics at that time
     evaluations.npz       EvalCallback log (val split); eval_curve.csv the same as text
     train_log.csv         reward of every training episode;   learning_curve.png
-    checkpoints/latest    name of the newest checkpoint folder, checkpoints/ckpt_<timesteps>/ (bboxtune.agents.training.checkpoints)
+    checkpoints/latest    name of the newest checkpoint folder, checkpoints/ckpt_<timesteps>/
+    (bboxtune.agents.training.checkpoints)
 
 Models are loaded by :func:`bboxtune.agents.training.safe_load.load_model` (no unpickling), statistics by
 :func:`bboxtune.agents.training.run_files.load_normalizer` (JSON; an old run's ``vecnormalize.pkl`` only with ``trust_pickle``).

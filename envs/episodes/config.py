@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -22,7 +22,8 @@ from bboxtune.envs.episodes.actions import ACCEPTS, BACKENDS, DEFAULT_TUNE
 from bboxtune.envs.video.detectors import DETECTORS
 
 SOURCES = ("sim", "otb", "otb_tracker", "video", "mix", "mot")
-MIX_SOURCES = ("sim", "otb", "otb_tracker")  # the parts of source "mix", in the order of mix_weights
+# the parts of source "mix", in the order of mix_weights (a triple: mot weight 0; mix_part: what each part takes)
+MIX_SOURCES = ("sim", "otb", "otb_tracker", "mot")
 SPLITS = ("train", "val", "test")
 SCENARIOS = ("stationary", "nonstationary")  # sim: one regime per track, or regimes switching within it
 REWARDS = ("rmse", "iou_precision", "success_auc")
@@ -97,13 +98,16 @@ def _trackers(value: Any) -> tuple[str, ...] | None:
     return trackers
 
 
-def _mix_weights(value: Any) -> tuple[float, float, float]:
-    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) or len(value) != 3:
-        raise TypeError(f"mix_weights={value!r}; allowed: a (sim, otb, otb_tracker) triple of real numbers in [0, 1e6]")
+def _mix_weights(value: Any) -> tuple[float, ...]:
+    """The weights as floats: the (sim, otb, otb_tracker) triple, or the 4-tuple with a positive mot weight (a mot
+    weight of 0 is dropped: one value per mix, so the configs of before compare and draw as they did)."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) or len(value) not in (3, 4):
+        raise TypeError(f"mix_weights={value!r}; allowed: a (sim, otb, otb_tracker) triple or a (sim, otb, otb_tracker, "
+                        "mot) 4-tuple of real numbers in [0, 1e6]")
     weights = tuple(check_real(f"mix_weights[{i}]", v, 0.0, 1e6) for i, v in enumerate(value))
     if not sum(weights) > 0:
         raise ValueError(f"mix_weights={value!r}; allowed: weights >= 0 with a positive sum")
-    return weights  # type: ignore[return-value]
+    return weights[:3] if weights[3:] == (0.0,) else weights
 
 
 def _tune(backend: str, value: Any) -> tuple[str, ...]:
@@ -150,9 +154,10 @@ class EnvConfig:
     # cmn_rel_range; nominal σ = otb_sigma_v_rel / otb_sigma_w_rel × the measured box scale); sim / mix, stationary
     sim_noise: str = "absolute"
     # detection errors of a real detection stream, added to the measurements (bboxtune.envs.data.sim_detections; sources sim,
-    # otb, otb_tracker and mix, not video or mot, whose detectors already miss): missed frames (NaN rows of y, the
-    # first and last measured frame kept) — "none" | "bernoulli" (each frame missed independently at the episode's
-    # miss rate) | "runs" (Gilbert–Elliott miss runs of mean length miss_run at that rate)
+    # otb, otb_tracker and the sim / otb / otb_tracker parts of mix, not video, mot or the mot part of a mix, whose
+    # detectors already miss): missed frames (NaN rows of y, the first and last measured frame kept) — "none" |
+    # "bernoulli" (each frame missed independently at the episode's miss rate) | "runs" (Gilbert–Elliott miss runs
+    # of mean length miss_run at that rate)
     detection_dropout: str = "none"
     miss_rate_range: tuple[float, float] = (0.0, 0.6)  # fraction of frames missed, per episode, uniform; within [0, 0.95]
     miss_run_range: tuple[float, float] = (1.0, 20.0)  # frames, mean miss run ("runs"), log-uniform; within [1, 1000]
@@ -166,13 +171,16 @@ class EnvConfig:
     # "otb_tracker" / "mix": the trackers an episode's tracker is drawn from, uniformly (names under the OTB
     # root's trackers/, distinct; bboxtune.envs.data.otb.TRACKER_SPLIT has the default split); None -> (tracker,)
     trackers: tuple[str, ...] | None = None
-    # source "mix": relative weights of its parts (sim, otb, otb_tracker), each a real in [0, 1e6], sum > 0
-    mix_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    mot_root: str | None = None  # source "mot": folder of the MOT15 data (bboxtune.envs.data.mot); None -> $MOT_ROOT
+    # source "mix": relative weights of its parts, a (sim, otb, otb_tracker) triple or a (sim, otb, otb_tracker, mot)
+    # 4-tuple, each a real in [0, 1e6], sum > 0; a mot weight of 0 is stored as the triple (the same mix: one value)
+    mix_weights: tuple[float, ...] = (1.0, 1.0, 1.0)
+    # source "mot" or a mix with a positive mot weight: folder of the MOT15 data (bboxtune.envs.data.mot); None -> $MOT_ROOT
+    mot_root: str | None = None
     otb_tau: float = 1 / 30  # s, OTB frame interval (30 fps); in [1e-3, 1]
     # OTB sources, train split only (augmentation for fast motion): each episode plays its sequence at a random frame
     # stride k in [1, otb_speedup_max] (bboxtune.envs.episodes.sources.OTBSource), so the object moves k times as far per frame
-    # (source "mot" too: its identities are then played at fps / k, τ = k / fps, bboxtune.envs.episodes.mot_source);
+    # (source "mot" and the mot part of a mix too: its identities are then played at fps / k, τ = k / fps,
+    # bboxtune.envs.episodes.mot_source);
     # the val and test splits always play every frame; integer in [1, 8]
     otb_speedup_max: int = 1
     cmn_rel_range: tuple[float, float] = (0.01, 0.1)  # source "otb": σ_ξ relative to the box size, log-uniform; within [1e-4, 1]
@@ -203,6 +211,7 @@ class EnvConfig:
     def __post_init__(self) -> None:
         put = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731 (frozen: normalised values)
         put("source", check_choice("source", self.source, SOURCES))
+        put("mix_weights", _mix_weights(self.mix_weights))
         put("backend", check_choice("backend", self.backend, BACKENDS))
         put("reward", check_choice("reward", self.reward, REWARDS))
         put("reward_baseline", check_choice("reward_baseline", self.reward_baseline, ("rule", "raw")))
@@ -219,10 +228,13 @@ class EnvConfig:
         put("miss_rate_range", check_range("miss_rate_range", self.miss_rate_range, 0.0, 0.95))
         put("miss_run_range", check_range("miss_run_range", self.miss_run_range, 1.0, 1000.0))
         put("outlier_rate_range", check_range("outlier_rate_range", self.outlier_rate_range, 0.0, 0.5))
-        detector = "with source 'sim', 'otb', 'otb_tracker' or 'mix' (the video and mot detectors miss and err already)"
+        detector = ("with source 'sim', 'otb', 'otb_tracker', or 'mix' with a positive sim, otb or otb_tracker weight "
+                    "(the video and mot detectors, also a mix's mot part, miss and err already)")
+        simulated = self.source in ("sim", "otb", "otb_tracker") or (
+            self.source == "mix" and any(self.mix_parts[part] > 0 for part in MIX_SOURCES[:3]))
         for name, default, used, allowed in (
-                ("detection_dropout", "none", self.source not in ("video", "mot"), detector),
-                ("outlier_rate_range", (0.0, 0.0), self.source not in ("video", "mot"), detector),
+                ("detection_dropout", "none", simulated, detector),
+                ("outlier_rate_range", (0.0, 0.0), simulated, detector),
                 ("miss_rate_range", (0.0, 0.6), self.detection_dropout != "none",
                  "with detection_dropout 'bernoulli' or 'runs'"),
                 ("miss_run_range", (1.0, 20.0), self.detection_dropout == "runs", "with detection_dropout 'runs'")):
@@ -254,32 +266,42 @@ class EnvConfig:
         put("otb_speedup_max", check_integer("otb_speedup_max", self.otb_speedup_max, 1, 8))
         if self.otb_speedup_max > 1 and self.source not in ("otb", "otb_tracker", "mix", "mot"):
             raise ValueError(f"otb_speedup_max={self.otb_speedup_max} with source={self.source!r}: allowed only with "
-                             "source 'otb', 'otb_tracker', 'mix' (its OTB parts) or 'mot'; leave the default 1 otherwise")
+                             "source 'otb', 'otb_tracker', 'mix' (its OTB and MOT parts) or 'mot'; leave the default 1 "
+                             "otherwise")
         put("otb_sigma_v_rel", check_real("otb_sigma_v_rel", self.otb_sigma_v_rel, 0.0, 10.0, open_low=True))
         put("otb_sigma_w_rel", check_real("otb_sigma_w_rel", self.otb_sigma_w_rel, 0.0, 1e4, open_low=True))
         put("sigma_decades", check_real("sigma_decades", self.sigma_decades, 0.0, 3.0, open_low=True))
         put("nominal_psi", check_real("nominal_psi", self.nominal_psi, 0.0, 0.99))
         put("otb_root", _optional_path("otb_root", self.otb_root))
         put("mot_root", _optional_path("mot_root", self.mot_root))
-        if self.mot_root is not None and self.source != "mot":
-            raise ValueError(f"mot_root={self.mot_root!r} with source={self.source!r}: allowed only with source 'mot'")
         put("video_cache", _optional_path("video_cache", self.video_cache))
         if not isinstance(self.tracker, str) or not self.tracker:
             raise TypeError(f"tracker={self.tracker!r}; allowed: a non-empty tracker name (str)")
         self._check_mix_fields()
         self._check_video_fields()
 
+    @property
+    def mix_parts(self) -> dict[str, float]:
+        """The weight of each part of source "mix" (``MIX_SOURCES`` order; the mot part's is 0 for a triple)."""
+        weights = self.mix_weights + (0.0,) * (len(MIX_SOURCES) - len(self.mix_weights))
+        return dict(zip(MIX_SOURCES, weights, strict=False))
+
     def _check_mix_fields(self) -> None:
-        """``trackers`` and ``mix_weights``: checked, and refused where the source would not use them."""
+        """``trackers`` checked; it, ``mix_weights`` (normalised first of all) and ``mot_root`` refused where the source
+        would not use them."""
         object.__setattr__(self, "trackers", _trackers(self.trackers))
-        object.__setattr__(self, "mix_weights", _mix_weights(self.mix_weights))
-        uses_trackers = self.source == "otb_tracker" or (self.source == "mix" and self.mix_weights[2] > 0)
+        mix = self.source == "mix"
+        uses_trackers = self.source == "otb_tracker" or (mix and self.mix_parts["otb_tracker"] > 0)
         if self.trackers is not None and not uses_trackers:
             raise ValueError(f"trackers={self.trackers!r} with source={self.source!r}: allowed only with source "
                              "'otb_tracker', or 'mix' with a positive otb_tracker weight (mix_weights[2])")
-        if self.source != "mix" and self.mix_weights != (1.0, 1.0, 1.0):
+        if not mix and self.mix_weights != (1.0, 1.0, 1.0):
             raise ValueError(f"mix_weights={self.mix_weights!r} with source={self.source!r}: allowed only with "
                              "source 'mix' (leave the default (1.0, 1.0, 1.0) otherwise)")
+        if self.mot_root is not None and not (self.source == "mot" or (mix and self.mix_parts["mot"] > 0)):
+            weights = f", mix_weights={self.mix_weights!r}" if mix else ""
+            raise ValueError(f"mot_root={self.mot_root!r} with source={self.source!r}{weights}: allowed only with "
+                             "source 'mot', or 'mix' with a positive mot weight (mix_weights[3])")
 
     def _check_video_fields(self) -> None:
         object.__setattr__(self, "detector", check_choice("detector", self.detector, DETECTORS))
@@ -299,3 +321,36 @@ class EnvConfig:
         if unknown:
             raise TypeError(f"unknown env argument(s) {unknown}; allowed: {sorted(known)}")
         return cls(**kwargs)
+
+
+SIM_ONLY = ("sim_noise", "scenario")  # settings of the sim part that the OTB and MOT sources refuse other than default
+DETECTION_ERRORS = ("detection_dropout", "miss_rate_range", "miss_run_range", "outlier_rate_range")
+
+
+def mix_part(cfg: EnvConfig, part: str) -> EnvConfig:
+    """The config that part ``part`` (of ``MIX_SOURCES``) of the mix ``cfg`` draws its episodes with: ``cfg`` as the
+    part's own single source, so that a mix episode is the part's episode of the same noise seed.
+
+    What applies to which part — every part: ``split`` (the sim part's is its noise seeds), the back end, reward,
+    ``tune`` and action settings, ``nominal_psi``, ``horizon_max``;
+
+    * sim: the sim settings (``track_length``, the ranges, ``motion``, ``scenario``, ``sim_noise`` with
+      ``cmn_rel_range`` and the OTB sources' nominal), the detection errors; not ``otb_speedup_max`` (played at 1);
+    * otb, otb_tracker: ``otb_root``, ``otb_tau``, ``otb_speedup_max``, the nominal ``otb_sigma_v_rel`` /
+      ``otb_sigma_w_rel``, the detection errors; otb also ``psi_range`` and ``cmn_rel_range`` (its CMN),
+      otb_tracker ``trackers``; ``sim_noise`` and ``scenario`` are the sim part's (here their defaults);
+    * mot: ``mot_root``, ``otb_speedup_max`` (its frame strides on the train split) and the nominal ``otb_sigma_v_rel``
+      / ``otb_sigma_w_rel`` (:mod:`bboxtune.envs.episodes.mot_source`); **no detection errors** — its detections are real and
+      miss already (their gaps stay as MOT15 has them) — nor ``sim_noise`` / ``scenario``.
+
+    ``mot_root`` goes to the mot part only, ``trackers`` to otb_tracker only."""
+    defaults = {f.name: f.default for f in fields(EnvConfig)}
+    changes: dict[str, Any] = {"source": part, "mix_weights": defaults["mix_weights"],
+                               "trackers": cfg.trackers if part == "otb_tracker" else None,
+                               "otb_speedup_max": 1 if part == "sim" else cfg.otb_speedup_max,
+                               "mot_root": cfg.mot_root if part == "mot" else None}
+    if part != "sim":
+        changes.update({name: defaults[name] for name in SIM_ONLY})
+    if part == "mot":
+        changes.update({name: defaults[name] for name in DETECTION_ERRORS})
+    return replace(cfg, **changes)

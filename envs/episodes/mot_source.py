@@ -17,6 +17,10 @@ episode is then cut to its first and last detection again. The val and test spli
 
 Nominal σ (the fixed rule's) as the OTB sources': ``otb_sigma_v_rel`` / ``otb_sigma_w_rel`` × the median measured
 box scale sqrt(w·h).
+
+The mot part of ``source="mix"`` (``mix_weights`` (sim, otb, otb_tracker, mot)) is this source with the mix's
+``split``, ``mot_root`` and ``otb_speedup_max`` (:func:`bboxtune.envs.episodes.config.mix_part`): the same episode for the same
+noise seed, and never the simulated detection errors of the other parts.
 """
 
 from __future__ import annotations

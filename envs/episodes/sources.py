@@ -10,9 +10,10 @@ exactly the same episode. The generators: ``default_rng(noise_seed)`` the sim sc
 missed frames and wrong boxes, :mod:`bboxtune.envs.data.sim_detections`) — independent streams, so adding trackers, a
 mix or detection errors changes none of the others.
 
-Detection errors (sources "sim", "otb", "otb_tracker" and every part of "mix"; not "video" or "mot", whose
-detectors already miss) are added to an episode's measured boxes after its noise and before its nominal σ,
-which the OTB sources and ``sim_noise="box"`` take from the measured boxes — from what the agent sees. The
+Detection errors (sources "sim", "otb", "otb_tracker" and those parts of "mix"; not "video", "mot" or the mot
+part of a mix, whose detectors already miss) are added to an episode's measured boxes after its noise and before
+its nominal σ, which the OTB sources and ``sim_noise="box"`` take from the measured boxes — from what the agent
+sees. The
 episode's ``scenario`` gains their drawn ``miss_rate``, ``miss_run``, ``outlier_rate``
 (:meth:`bboxtune.envs.data.sim_detections.DetectionModel.parameters`). Without them (the defaults) nothing is drawn
 from stream 5 and every episode is what it was.
@@ -41,7 +42,7 @@ from bboxtune.envs.data.sim_detections import DetectionModel
 from bboxtune.envs.data.sim_regimes import simulate_nonstationary
 from bboxtune.envs.data.simulate import Scenario, ScenarioRanges, Track, simulate_each
 from bboxtune.envs.episodes.actions import K_AXIS, Nominal
-from bboxtune.envs.episodes.config import MIX_SOURCES, EnvConfig
+from bboxtune.envs.episodes.config import MIX_SOURCES, EnvConfig, mix_part
 from bboxtune.envs.episodes.episode import Episode, Source, rule_nominal
 from bboxtune.envs.episodes.features import box_scale
 from bboxtune.envs.episodes.mot_source import MOTSource
@@ -275,31 +276,35 @@ class OTBSource(Source):
 
 
 class MixSource(Source):
-    """Source "mix": each episode's part — "sim", "otb" or "otb_tracker"
-    (``bboxtune.envs.episodes.config.MIX_SOURCES``) — is drawn
-    with probabilities proportional to ``mix_weights`` from ``default_rng((noise_seed, 3))``; the episode is
-    then that part's episode of the same noise seed (what a single-source env of the part draws, with the
-    same config: nominal σ, the fixed rule and the scenario come from the part), with ``meta["source"]``
-    naming the part. Parts of weight 0 are not built (without OTB weight no OTB data is needed). Pinning a
-    sequence (tracker) is allowed when the noise seed draws a part that has sequences (trackers); the part is
-    never re-drawn, so the options of an episode's ``meta`` replay it."""
+    """Source "mix": each episode's part — "sim", "otb", "otb_tracker" or "mot"
+    (``bboxtune.envs.episodes.config.MIX_SOURCES``) — is drawn with probabilities proportional to ``mix_weights`` from
+    ``default_rng((noise_seed, 3))``; the episode is then that part's episode of the same noise seed (what a
+    single-source env of the part draws, with the config :func:`bboxtune.envs.episodes.config.mix_part` gives it: nominal σ,
+    the fixed rule and the scenario come from the part; the detection errors apply to the sim / otb / otb_tracker
+    parts, never to the mot part's real detections), with ``meta["source"]`` naming the part. A (sim, otb,
+    otb_tracker) triple draws the part over those three as before the mot part existed (the same episodes bit for
+    bit). Parts of weight 0 are not built (without OTB weight no OTB data is needed, without mot weight no MOT15
+    data). Each part keeps its split: the OTB parts draw the ``split``'s sequences, the mot part its identities
+    (:func:`bboxtune.envs.data.mot.split`). Pinning a sequence (an OTB sequence or a MOT identity "<sequence>/<id>") or a
+    tracker is allowed when the noise seed draws a part that has them; the part is never re-drawn, so the options of
+    an episode's ``meta`` replay it."""
 
     def __init__(self, cfg: EnvConfig) -> None:
-        self.weights = np.array(cfg.mix_weights) / sum(cfg.mix_weights)
+        self.weights = np.array(cfg.mix_weights) / sum(cfg.mix_weights)  # 3 entries for a triple: its draw of before
         self.parts: dict[str, Source] = {}
+        weights = cfg.mix_parts
         dataset = None
-        if any(w > 0 for w in cfg.mix_weights[1:]):
+        if weights["otb"] > 0 or weights["otb_tracker"] > 0:
             try:
                 dataset = OTBDataset(cfg.otb_root)
             except ValueError as err:
                 raise ValueError(f"source='mix' with mix_weights={cfg.mix_weights!r} draws OTB episodes and needs the "
                                  f"OTB data (give the otb parts weight 0 to mix without it): {err}") from None
-        for name, weight in zip(MIX_SOURCES, cfg.mix_weights, strict=False):
+        for name, weight in weights.items():
             if weight > 0:
-                part = replace(cfg, source=name, mix_weights=(1.0, 1.0, 1.0),
-                               trackers=cfg.trackers if name == "otb_tracker" else None,
-                               otb_speedup_max=1 if name == "sim" else cfg.otb_speedup_max)
-                self.parts[name] = SimSource(part) if name == "sim" else OTBSource(part, dataset)
+                part = mix_part(cfg, name)
+                self.parts[name] = (SimSource(part) if name == "sim" else _mot_part(cfg, part) if name == "mot" else
+                                    OTBSource(part, dataset))
         self.block = self.parts["sim"].block if "sim" in self.parts else 1
         self.trackers = self.parts["otb_tracker"].trackers if "otb_tracker" in self.parts else ()
 
@@ -310,11 +315,12 @@ class MixSource(Source):
 
     def part_of(self, noise_seed: int) -> str:
         """The part that the episode of ``noise_seed`` comes from."""
-        return MIX_SOURCES[int(np.random.default_rng((noise_seed, 3)).choice(len(MIX_SOURCES), p=self.weights))]
+        return MIX_SOURCES[int(np.random.default_rng((noise_seed, 3)).choice(len(self.weights), p=self.weights))]
 
     def draw(self, sequence: str | None, noise_seed: int, tracker: str | None = None) -> Episode:
         part = self.part_of(noise_seed)
-        for option, value, allowed in (("sequence", sequence, ("otb", "otb_tracker")), ("tracker", tracker, ("otb_tracker",))):
+        for option, value, allowed in (("sequence", sequence, ("otb", "otb_tracker", "mot")),
+                                       ("tracker", tracker, ("otb_tracker",))):
             if value is not None and part not in allowed:
                 raise ValueError(f"options[{option!r}]={value!r}: noise_seed={noise_seed} draws a {part!r} episode of "
                                  f"source 'mix' (mix_weights), which has no {option}s; allowed with parts {allowed}")
@@ -326,6 +332,15 @@ class MixSource(Source):
         parts = [self.part_of(seed) for seed in noise_seeds]
         sim = iter(self.parts["sim"].draw_many([s for s, p in zip(noise_seeds, parts, strict=False) if p == "sim"]) if "sim" in self.parts else [])
         return [_labelled(next(sim) if p == "sim" else self.parts[p].draw(None, s), p) for s, p in zip(noise_seeds, parts, strict=False)]
+
+
+def _mot_part(cfg: EnvConfig, part: EnvConfig) -> MOTSource:
+    """The mot part (config ``part``) of the mix ``cfg``; a missing MOT15 copy is one error naming what needs it."""
+    try:
+        return MOTSource(part)
+    except ValueError as err:
+        raise ValueError(f"source='mix' with mix_weights={cfg.mix_weights!r} draws MOT episodes and needs the MOT15 "
+                         f"data (mot_root or $MOT_ROOT; give the mot part weight 0 to mix without it): {err}") from None
 
 
 def _labelled(episode: Episode, part: str) -> Episode:

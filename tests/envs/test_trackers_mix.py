@@ -13,6 +13,7 @@ from bboxtune.envs.episodes.config import MIX_SOURCES, EnvConfig
 from tests.envs.conftest import OTB_ROOT, needs_otb
 
 TUNE, RETUNE = "bboxtune/FilterTune-v0", "bboxtune/FilterRetune-v0"
+TRIPLE = MIX_SOURCES[:3]  # the parts of a (sim, otb, otb_tracker) mix; the mot part: tests/envs/test_mix_mot.py
 HELD_OUT = ("SiamRPN++", "CFNet", "STRUCK", "MDNet")
 
 
@@ -150,10 +151,10 @@ def test_tracker_option_pins_the_tracker_and_is_checked() -> None:
 def test_mix_draws_each_part_with_its_weight(weights: tuple) -> None:
     source = _otb(source="mix", mix_weights=weights).unwrapped.source
     n = 6000
-    counts = np.array([sum(source.part_of(seed) == part for seed in range(n)) for part in MIX_SOURCES])
+    counts = np.array([sum(source.part_of(seed) == part for seed in range(n)) for part in TRIPLE])
     p = np.array(weights) / sum(weights)
     assert np.all(np.abs(counts - n * p) <= 4 * np.sqrt(n * p * (1 - p)) + 1e-9)  # 4 binomial std, fixed seeds
-    assert set(source.parts) == {part for part, w in zip(MIX_SOURCES, weights, strict=False) if w > 0}
+    assert set(source.parts) == {part for part, w in zip(TRIPLE, weights, strict=False) if w > 0}
 
 
 @needs_otb
@@ -173,7 +174,7 @@ def test_a_mix_episode_is_its_parts_episode(env_id: str) -> None:
     # ufir_cmn: bit-identical in any batch (the Kalman family's batched BLAS products round by batch width)
     mix = _otb(env_id, source="mix", trackers=("STRUCK", "MDNet"), track_length=200, backend="ufir_cmn")
     parts = {part: _otb(env_id, source=part, track_length=200, backend="ufir_cmn",
-                        **({"trackers": ("STRUCK", "MDNet")} if part == "otb_tracker" else {})) for part in MIX_SOURCES}
+                        **({"trackers": ("STRUCK", "MDNet")} if part == "otb_tracker" else {})) for part in TRIPLE}
     for name in ("observation_space", "action_space"):
         assert all(getattr(mix, name) == getattr(env, name) for env in parts.values())
     seen = set()
@@ -183,14 +184,14 @@ def test_a_mix_episode_is_its_parts_episode(env_id: str) -> None:
         seen.add(part)
         assert part == mix.unwrapped.source.part_of(episode[1]["noise_seed"])
         assert episode == _episode(parts[part], {"noise_seed": episode[1]["noise_seed"]})  # nominal, rule, scenario: the part's
-    assert seen == set(MIX_SOURCES)
+    assert seen == set(TRIPLE)
 
 
 @needs_otb
 def test_mix_pins_replay_and_refuse_what_the_drawn_part_lacks() -> None:
     env = _otb(source="mix", track_length=200)
     source = env.unwrapped.source
-    seeds = {part: next(s for s in range(100) if source.part_of(s) == part) for part in MIX_SOURCES}
+    seeds = {part: next(s for s in range(100) if source.part_of(s) == part) for part in TRIPLE}
     for part, seed in seeds.items():  # unpinned = pinned by its meta
         episode = _episode(env, {"noise_seed": seed})
         assert episode[1]["source"] == part and _episode(env, _pins(episode[1])) == episode
@@ -206,7 +207,7 @@ def test_a_mix_episode_prepared_in_a_block_equals_the_same_episode_pinned() -> N
     env = _otb(source="mix", track_length=200)
     assert env.unwrapped.source.block > 1
     blocked = [_episode(env, seed=2)] + [_episode(env) for _ in range(7)]
-    assert {e[1]["source"] for e in blocked} == set(MIX_SOURCES)
+    assert {e[1]["source"] for e in blocked} == set(TRIPLE)
     assert blocked == [_episode(env, _pins(e[1])) for e in blocked]
 
 

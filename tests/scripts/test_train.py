@@ -220,6 +220,8 @@ def test_tensorboard_without_the_package_fails_clearly(train: ModuleType, tmp_pa
     (["--source", "otb_tracker"], "train"),  # the default: never the held-out trackers
     (["--source", "mix"], "train"),
     (["--source", "mix", "--env-kwargs", "mix_weights=[1, 1, 0]"], None),  # no tracker episodes: nothing to set
+    (["--source", "mix", "--env-kwargs", "mix_weights=[1, 0, 0, 1]"], None),  # sim + MOT15: no tracker episodes either
+    (["--source", "mix", "--env-kwargs", "mix_weights=[0, 0, 1, 1]"], "train"),
     (["--source", "otb_tracker", "--trackers", "test"], "test"),
     (["--source", "otb_tracker", "--trackers", "SiamFC,STRUCK"], ["SiamFC", "STRUCK"]),
     (["--source", "otb_tracker", "--env-kwargs", "tracker=STRUCK"], None),  # one tracker given: kept as it is

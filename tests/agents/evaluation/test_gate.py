@@ -1,4 +1,5 @@
-"""bboxtune.agents.evaluation.gate: the gated tuner uses its model's action only above the margin and leaves the measurements alone
+"""bboxtune.agents.evaluation.gate: the gated tuner uses its model's action only above the margin and leaves the
+measurements alone
 elsewhere, the gain regressor learns which episodes a fixed smoothing pays on, and the margin is chosen on val
 episodes (ties to leaving episodes alone)."""
 

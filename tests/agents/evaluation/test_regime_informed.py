@@ -1,4 +1,5 @@
-"""bboxtune.agents.evaluation.regime_informed: the true schedule around the coming window, in the observation of a reference regressor,
+"""bboxtune.agents.evaluation.regime_informed: the true schedule around the coming window, in the observation of a
+reference regressor,
 and the best action per true regime state."""
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""bboxtune.agents.policies.gate_file: a gate written and read back predicts the same, ±inf margins survive JSON, and a malformed file
+"""bboxtune.agents.policies.gate_file: a gate written and read back predicts the same, ±inf margins survive JSON, and
+a malformed file
 is refused with its name and the field."""
 
 from __future__ import annotations

@@ -84,6 +84,19 @@ def test_the_rule_nominal_of_the_otb_sources_scales_with_the_box():
     assert tune_module.rule_nominal(sim, small, 1 / 30) == tune_module.rule_nominal(sim, large, 1 / 30)
 
 
+@pytest.mark.parametrize("kwargs", [{"source": "sim", "sim_noise": "box"},
+                                    {"source": "sim", "sim_noise": "box", "motion": "otb"},
+                                    {"source": "mix", "mix_weights": (1, 0, 0), "sim_noise": "box"}, {"source": "sim"}])
+def test_the_rule_nominal_is_the_one_the_env_trained_with(kwargs):
+    """A tuner observes a track with the nominal σ its training episodes had (sim_noise="box": relative to the box)."""
+    cfg = tune_module.EnvConfig(track_length=120, backend="kf_cmn", **kwargs)
+    env = gym.make(ENV_ID, **dataclasses.asdict(cfg))
+    for seed in range(4):
+        env.reset(seed=seed)
+        ep = env.unwrapped.episode
+        assert tune_module.rule_nominal(cfg, ep.y, ep.tau) == ep.nominal
+
+
 def test_the_package_functions_use_the_named_tuner_and_the_run_directory_alike():
     boxes, tau = _track(2), 1 / 30
     params = agents.tune(boxes, tau, pretrained="sim_ufir_cmn")
