@@ -45,7 +45,8 @@ class ArgumentParser(argparse.ArgumentParser):
     by default, no abbreviated flags (``--ou`` is not ``--out``)."""
 
     def __init__(self, *args: Any, allow_abbrev: bool = False, **kwargs: Any) -> None:
-        super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)
+        kwargs["allow_abbrev"] = allow_abbrev
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> NoReturn:
         line = " ".join(str(message).split())  # a message with newlines still gives one line
@@ -98,7 +99,7 @@ def float_range(low: float | None = None, high: float | None = None, *,
     def parse(text: str) -> float:
         value = _finite(text)
         ok = value is not None and (low is None or (value > low if low_open else value >= low))
-        if not ok or (high is not None and value > high):
+        if value is None or not ok or (high is not None and value > high):
             raise argparse.ArgumentTypeError(f"invalid value {shorten(text)}; allowed: {allowed}")
         return value
 
@@ -243,8 +244,8 @@ yaml_file = _document(read_yaml)
 def box_xywh(text: str) -> tuple[float, float, float, float]:
     """``type=`` for a box ``x,y,w,h`` in px: four finite numbers, w > 0 and h > 0."""
     parts = [p.strip() for p in text.split(",", 4)] if len(text) <= 400 else []
-    values = [_finite(p) for p in parts] if len(parts) == 4 else []
-    if len(values) != 4 or None in values or values[2] <= 0 or values[3] <= 0:
+    values = [v for v in (_finite(p) for p in parts) if v is not None] if len(parts) == 4 else []  # 4: all finite
+    if len(values) != 4 or values[2] <= 0 or values[3] <= 0:
         raise argparse.ArgumentTypeError(f"invalid box {shorten(text)}; allowed: x,y,w,h (px), finite, w > 0, h > 0")
     x, y, w, h = values
     return x, y, w, h

@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import gymnasium as gym
 import numpy as np
@@ -20,6 +21,9 @@ from tqdm import tqdm
 from bboxtune.envs.episodes.actions import ActionMap, Nominal
 from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.scoring import reference_scores, reward_from, run_positions, score_estimates
+
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.envs.track_env import TrackEnv
 
 ScoreFn = Callable[[np.ndarray], dict[str, np.ndarray]]  # actions (A, d) -> {"reward": (A,), "rmse": (A,), ...}
 
@@ -31,8 +35,8 @@ def nominal_action(action_map: ActionMap, nominal: Nominal) -> np.ndarray:
 
 def rule_action(env: gym.Env) -> np.ndarray:
     """The action (d,) that reproduces the fixed rule on the env's current episode."""
-    base = env.unwrapped
-    return nominal_action(base.action_map, base.episode.nominal)
+    base = cast("TrackEnv", env.unwrapped)
+    return nominal_action(base.action_map, cast(Episode, base.episode).nominal)  # set by the env's reset
 
 
 @dataclass(frozen=True)
@@ -50,8 +54,8 @@ class EpisodeBank:
     """Episodes of ``env`` pinned by ``seeds`` (and ``sequence`` for OTB sources; ``None`` lets the noise
     seed pick it, as the env does)."""
 
-    def __init__(self, env: gym.Env, seeds: Sequence[int], *, progress: bool = False) -> None:
-        base = env.unwrapped
+    def __init__(self, env: gym.Env, seeds: Sequence[int] | np.ndarray, *, progress: bool = False) -> None:
+        base = cast("TrackEnv", env.unwrapped)
         self.backend: str = base.config.backend
         self.reward_kind: str = base.config.reward
         baseline: str = base.config.reward_baseline
@@ -59,7 +63,7 @@ class EpisodeBank:
         self.items: list[PinnedEpisode] = []
         for seed in tqdm(seeds, desc="episodes", disable=not progress, leave=False):
             obs, _ = env.reset(options={"noise_seed": int(seed)})
-            ep = base.episode
+            ep = cast(Episode, base.episode)  # set by the reset above
             rule = self._scores(ep, rule_action(env)[None])
             reference = reference_scores(baseline, rule, [ep.y], [ep.truth])
             self.items.append(PinnedEpisode(int(seed), np.asarray(obs), ep, {k: float(v[0]) for k, v in rule.items()},

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -38,7 +39,8 @@ def read_json(path: Path) -> Any:
         raise ValueError(f"{path}: invalid JSON: nested too deeply") from None
 
 
-def json_number(doc: Any, key: str, path: Path | str, low: float = -math.inf, error: type[ValueError] = ValueError) -> float:
+def json_number(doc: Any, key: str, path: str | os.PathLike[str], low: float = -math.inf,
+                error: type[ValueError] = ValueError) -> float:
     """``doc[key]`` of a parsed JSON object as a finite number >= ``low`` (not a bool); ``error`` naming ``path``."""
     value = doc.get(key) if isinstance(doc, dict) else None
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < low:
@@ -46,7 +48,7 @@ def json_number(doc: Any, key: str, path: Path | str, low: float = -math.inf, er
     return float(value)
 
 
-def json_vector(doc: Any, key: str, size: int, path: Path | str, low: float = -math.inf, what: str = "",
+def json_vector(doc: Any, key: str, size: int, path: str | os.PathLike[str], low: float = -math.inf, what: str = "",
                 error: type[ValueError] = ValueError) -> np.ndarray:
     """``doc[key]`` of a parsed JSON object as ``size`` finite numbers >= ``low`` (float64); ``error`` naming ``path``
     (and ``what`` the size is)."""

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from bboxtune import filters
 from bboxtune.envs.episodes.actions import ACCEPTS
 from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.features import FEATURE_NAMES, WINDOW_FEATURE_NAMES, measurement_features, window_features
 from bboxtune.envs.episodes.scoring import (
     SCORE_KEYS,
@@ -58,11 +59,13 @@ class FilterRetuneEnv(TrackEnv):
 
     | index        | what                                                                                 | unit |
     |--------------|--------------------------------------------------------------------------------------|------|
-    | 0–19         | ``bboxtune.envs.episodes.features.FEATURE_NAMES`` on the last ``history`` frames before the window      | see there |
-    |              | (default 100; the fixed rule's estimates on them are the pilot residual)              |      |
-    | 20–23        | ``bboxtune.envs.episodes.features.WINDOW_FEATURE_NAMES``: the filter's residuals y − ŷ in the window just | –    |
-    |              | filtered (log variance / scale², lag-1 autocorrelation, log variance minus the rule's, |      |
-    |              | share of missing frames) — how the current parameters are doing                      |      |
+    | 0–19         | ``bboxtune.envs.episodes.features.FEATURE_NAMES`` on the last ``history`` frames      | see there |
+    |              | before the window (default 100; the fixed rule's estimates on them are the pilot      |      |
+    |              | residual)                                                                             |      |
+    | 20–23        | ``bboxtune.envs.episodes.features.WINDOW_FEATURE_NAMES``: the filter's residuals      | –    |
+    |              | y − ŷ in the window just filtered (log variance / scale², lag-1 autocorrelation, log  |      |
+    |              | variance minus the rule's, share of missing frames) — how the current parameters are |      |
+    |              | doing                                                                                 |      |
     | 24 … 23 + d  | the current action (the rule's after the warm-up)                                     | [-1, 1] |
     | 24 + d       | the fraction of the track already filtered                                            | 0..1 |
     | 25 + d … 44 + d | ``"offline"`` only: ``FEATURE_NAMES`` on the **coming** window's measurements (the frames | see there |
@@ -196,14 +199,15 @@ class FilterRetuneEnv(TrackEnv):
         self._advance(self._rule_params)  # warm-up window, filtered by the rule
         return self._observe(), {"track": dict(ep.meta)}
 
+    # the methods below run after reset(), which sets self.episode (cast: typed Optional until then)
     def _window_bounds(self) -> tuple[int, int]:
-        return self._start, min(self._start + self.config.window, len(self.episode.y))
+        return self._start, min(self._start + self.config.window, len(cast(Episode, self.episode).y))
 
     def _run_window(self, params: dict[str, np.ndarray], carry: Any, end: int | None = None) -> tuple[np.ndarray, Any]:
         """Estimates (A, w, 4) of the current window (or, with ``end``, of the frames from its start to ``end``)
         for candidates ``params`` (arrays (A,)), continuing from ``carry`` (the back end's: a Kalman state or the
         FIR family's measurement history, :meth:`bboxtune.filters.base.Filter.run_from`), and the carry after them."""
-        ep = self.episode
+        ep = cast(Episode, self.episode)
         start, window_end = self._window_bounds()
         end = window_end if end is None else end
         n = len(params["horizon"])
@@ -212,7 +216,7 @@ class FilterRetuneEnv(TrackEnv):
         est, after = flt.positions_from(np.broadcast_to(y, (n, end - start, 4)), carry)
         return hold_missing(est, self._estimate[start - 1] if start > 0 else None), after  # the last box shown
 
-    def _advance(self, params: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def _advance(self, params: dict[str, np.ndarray]) -> np.ndarray:
         est, self._carry = self._run_window(params, self._carry)
         start, end = self._window_bounds()
         self._estimate[start:end] = est[0]
@@ -221,11 +225,11 @@ class FilterRetuneEnv(TrackEnv):
 
     def _features(self, lo: int, hi: int) -> np.ndarray:
         """``FEATURE_NAMES`` of the measurements [lo, hi) (pilot residual: the rule's estimates on them)."""
-        ep = self.episode
+        ep = cast(Episode, self.episode)
         return measurement_features(ep.y[lo:hi], ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, self._rule_est[lo:hi])
 
     def _observe(self) -> np.ndarray:
-        ep, start = self.episode, self._start
+        ep, start = cast(Episode, self.episode), self._start
         feats = self._features(max(0, start - self.config.history), start)
         last = max(0, start - self.config.window)
         recent = window_features(ep.y[last:start], self._estimate[last:start], self._rule_est[last:start])
@@ -300,7 +304,7 @@ class FilterRetuneEnv(TrackEnv):
         return None if self._carry is None else self._carry.repeat(n)
 
     def _score_window(self, est: np.ndarray, params: dict[str, np.ndarray], start: int, end: int) -> dict[str, Any]:
-        truth = self.episode.truth[start:end]
+        truth = cast(Episode, self.episode).truth[start:end]
         scores = score_estimates(est, truth)
         rule = {k: float(v[0]) for k, v in score_estimates(self._rule_est[None, start:end], truth).items()}
         if self.config.retune_reward == "track":
@@ -315,8 +319,9 @@ class FilterRetuneEnv(TrackEnv):
     def _track_so_far(self, est: np.ndarray, start: int, end: int) -> np.ndarray:
         """The env's reward (against the rule) on the frames from the end of the warm-up to ``end``, for candidates
         whose estimates on [start, end) are ``est`` (A, end − start, 4) after the estimates already made (A,)."""
-        first = min(self.config.window, len(self.episode.y))  # the warm-up is the rule's on both sides
-        truth = self.episode.truth[first:end]
+        ep = cast(Episode, self.episode)
+        first = min(self.config.window, len(ep.y))  # the warm-up is the rule's on both sides
+        truth = ep.truth[first:end]
         if not np.isfinite(truth).all(axis=1).any():
             return np.zeros(len(est))
         past = np.broadcast_to(self._estimate[first:start], (len(est), start - first, est.shape[-1]))
@@ -353,7 +358,8 @@ def retune_observation_names(config: EnvConfig) -> tuple[str, ...]:
     """The FilterRetune-v0 observation's entries (Observation Space) for ``config``: ``FEATURE_NAMES`` (the recent
     frames), ``WINDOW_FEATURE_NAMES``, ``action_<parameter>`` per tuned parameter, ``progress`` and, with the offline
     view, ``coming_<feature>`` and ``track_<feature>``."""
-    names = [*FEATURE_NAMES, *WINDOW_FEATURE_NAMES, *(f"action_{p}" for p in config.tune), "progress"]
+    tune = cast("tuple[str, ...]", config.tune)  # EnvConfig.__post_init__ resolves None to the backend's default
+    names = [*FEATURE_NAMES, *WINDOW_FEATURE_NAMES, *(f"action_{p}" for p in tune), "progress"]
     if config.retune_view == "offline":
         names += [*(f"coming_{n}" for n in FEATURE_NAMES), *(f"track_{n}" for n in FEATURE_NAMES)]
     return tuple(names)

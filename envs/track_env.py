@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -43,7 +43,8 @@ def check_reset_args(seed: Any, options: Any) -> tuple[int | None, dict[str, Any
     if options is None:
         return seed, {}
     if not isinstance(options, Mapping):
-        raise TypeError(f"options={options!r} has type {type(options).__name__}; allowed: None or a dict with keys from {RESET_OPTIONS}")
+        raise TypeError(f"options={options!r} has type {type(options).__name__}; allowed: None or a dict with keys from "
+                        f"{RESET_OPTIONS}")
     unknown = sorted(map(repr, set(options) - set(RESET_OPTIONS)))
     if unknown:
         raise ValueError(f"unknown reset option(s) {', '.join(unknown)}; allowed: {RESET_OPTIONS}")
@@ -54,7 +55,8 @@ def check_reset_args(seed: Any, options: Any) -> tuple[int | None, dict[str, Any
         value = options.get(key)
         if value is not None:
             if not isinstance(value, str):
-                raise TypeError(f"options[{key!r}]={value!r} has type {type(value).__name__}; allowed: None or a {key} name (str)")
+                raise TypeError(f"options[{key!r}]={value!r} has type {type(value).__name__}; allowed: None or a {key} "
+                                "name (str)")
             checked[key] = value
     return seed, checked
 
@@ -73,8 +75,9 @@ class TrackEnv(gym.Env):
         self.render_mode = render_mode
         self.config = EnvConfig.from_kwargs(**kwargs)
         self.source = make_source(self.config)
-        self.action_map = ActionMap(tune=self.config.tune, K=K_AXIS, horizon_max=self.config.horizon_max,
-                                    sigma_decades=self.config.sigma_decades)
+        # config.tune: None is resolved to the backend's default by EnvConfig.__post_init__
+        self.action_map = ActionMap(tune=cast("tuple[str, ...]", self.config.tune), K=K_AXIS,
+                                    horizon_max=self.config.horizon_max, sigma_decades=self.config.sigma_decades)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.action_map.dim,), np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(FEATURE_NAMES) + n_extra_obs,), np.float32)
         self.episode: Episode | None = None
@@ -91,7 +94,7 @@ class TrackEnv(gym.Env):
         except BaseException:
             self._np_random, self._np_random_seed = rng, rng_seed
             if rng is not None:
-                rng.bit_generator.state = state
+                rng.bit_generator.state = cast("Mapping[str, Any]", state)  # rng's own, saved above
             raise
 
     def _noise_seeds(self, count: int) -> list[int]:
@@ -123,7 +126,7 @@ class TrackEnv(gym.Env):
         """The parameters the back end uses, of candidate ``row``, as Python numbers (for ``info``)."""
         return {k: (int(params[k][row]) if k == "horizon" else float(params[k][row])) for k in ACCEPTS[self.config.backend]}
 
-    def _render(self, estimate: np.ndarray, frame: int | None = None) -> np.ndarray | None:
+    def _render(self, estimate: np.ndarray | None, frame: int | None = None) -> np.ndarray | None:
         if self.render_mode != "rgb_array" or self.episode is None:
             return None
         return draw_episode(self.episode.truth, self.episode.y, estimate, frame=frame)

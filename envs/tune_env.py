@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections import deque
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -316,7 +316,7 @@ class FilterTuneEnv(TrackEnv):
                 out[r] = (episodes[r], rule, obs[i])
         return out
 
-    def score(self, actions: np.ndarray) -> dict[str, np.ndarray]:
+    def score(self, actions: np.ndarray) -> dict[str, Any]:
         """Score actions (A, d) on the current episode in one vectorised filter run.
 
         Returns ``reward``, ``rmse``, ``iou_mean``, ``success_auc``, ``precision20``, ``iou_precision``
@@ -342,7 +342,7 @@ class FilterTuneEnv(TrackEnv):
                   ) -> dict[str, Any]:
         """The step's ``info`` for candidate ``row`` of ``result`` (:meth:`score`'s keys) on the current episode
         or on ``prepared`` = (episode, rule run) (a batch of episodes, :mod:`bboxtune.envs.vector`)."""
-        episode, rule = prepared or (self.episode, self._rule)
+        episode, rule = prepared or (cast(Episode, self.episode), self._rule)  # after reset() or a prepared one
         info: dict[str, Any] = {k: float(result[k][row]) for k in SCORE_KEYS}
         info.update({f"rule_{k}": rule["scores"][k] for k in SCORE_KEYS})
         info["n_frames"] = int(len(episode.y))

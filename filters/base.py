@@ -21,7 +21,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from dataclasses import dataclass, fields, replace
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
@@ -78,8 +78,9 @@ class Carry:
 
     def slice(self, rows: slice) -> Carry:
         """The carry of tracks ``rows`` (every field sliced along the track axis)."""
-        return Carry(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[rows]
-                        for f in fields(self)})
+        values: dict[str, Any] = {f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[rows]
+                                  for f in fields(self)}
+        return Carry(**values)
 
     def repeat(self, n: int) -> Carry:
         """This one-track carry (B = 1) for ``n`` tracks, e.g. to continue ``n`` candidate parameter sets
@@ -88,8 +89,9 @@ class Carry:
             raise ValueError(f"repeat needs a one-track carry; carry.x has shape {self.x.shape}, allowed (1, K)")
         if not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"n={n!r}; allowed: an integer >= 1")
-        values = {f.name: getattr(self, f.name) for f in fields(self)}
-        return Carry(**{k: None if v is None else np.repeat(v, n, axis=0) for k, v in values.items()})
+        values: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)}
+        repeated: dict[str, Any] = {k: None if v is None else np.repeat(v, n, axis=0) for k, v in values.items()}
+        return Carry(**repeated)
 
 
 @dataclass(frozen=True, eq=False)
@@ -194,9 +196,10 @@ class Filter(ABC):
             out[rows] = axes[..., 0].reshape(rows.stop - rows.start, M, T).transpose(0, 2, 1)
         return out if batched else out[0]
 
+    # typed Any, as positions_from: a back end's carry is its own type (the FIR family's run_from takes and returns
+    # a History); this implementation, the Kalman family's, takes and returns a Carry
     @limited_blas
-    def run_from(self, y: np.ndarray, carry: Carry | None = None,
-                 u: np.ndarray | None = None) -> tuple[np.ndarray, Carry]:
+    def run_from(self, y: np.ndarray, carry: Any = None, u: np.ndarray | None = None) -> tuple[np.ndarray, Any]:
         """Continue a run: filter ``y`` (T, M) or (B, T, M) starting from ``carry`` (the state a previous call
         ended in; None = the start of every track, then the states equal ``run(y, u)``). The parameters may
         differ from the previous call's: they apply from the first frame of ``y`` on.
@@ -210,6 +213,7 @@ class Filter(ABC):
         if carry is not None:
             _split_carry(carry, n_tracks, M, n_c)  # validate once, for the whole batch
         states = np.empty((n_tracks, T, 2 * M))
+        end_carry: Carry
         ends: list[Carry] = []
         for rows, z, params, u_axes in self._chunks(Y, U, per_track):
             start = None if carry is None else _split_carry(carry.slice(rows), rows.stop - rows.start, M, n_c)
@@ -221,8 +225,9 @@ class Filter(ABC):
         if T == 0:
             end_carry = carry if carry is not None else not_started(n_tracks, M, n_c)
         elif ends:
-            end_carry = Carry(**{f.name: None if getattr(ends[0], f.name) is None else
-                                 np.concatenate([getattr(e, f.name) for e in ends]) for f in fields(Carry)})
+            merged: dict[str, Any] = {f.name: None if getattr(ends[0], f.name) is None else
+                                      np.concatenate([getattr(e, f.name) for e in ends]) for f in fields(Carry)}
+            end_carry = Carry(**merged)
         else:
             end_carry = not_started(0, M, n_c)
         return (states if batched else states[0]), end_carry
@@ -302,11 +307,12 @@ def measurement_history(z: np.ndarray, start: AxisCarry | None) -> dict[str, np.
     finite = ~np.isnan(z)
     seen = finite.any(axis=1)
     last = T - 1 - np.argmax(finite[:, ::-1], axis=1)  # the last finite frame (where ``seen``)
-    y_before = np.full(C, np.nan) if start is None else start.y_last
-    missed_before = np.where(np.isnan(y_before), 0, 0 if start is None else start.missed + T)
+    y_before = np.full(C, np.nan) if start is None else cast(np.ndarray, start.y_last)
+    # a started channel's history (start.y_last, start.missed, start.measured) is always set: _split_carry
+    missed_before = np.where(np.isnan(y_before), 0, 0 if start is None else cast(np.ndarray, start.missed) + T)
     return {"y_last": np.where(seen, z[np.arange(C), last], y_before),
             "missed": np.where(seen, T - 1 - last, missed_before),
-            "measured": seen if start is None else start.measured | seen}
+            "measured": seen if start is None else cast(np.ndarray, start.measured) | seen}
 
 
 def not_started(n_tracks: int, M: int, n_c: int = 0) -> Carry:
@@ -352,7 +358,7 @@ def _split_carry(carry: Carry, n_tracks: int, M: int, n_c: int) -> AxisCarry:
     if np.any(measured & waiting[:, 0]):
         raise ValueError("carry.measured is True for a coordinate whose carry.x is NaN; allowed: a measured "
                          "coordinate has a finite state")
-    y_last, missed = carry.y_last.reshape(-1), carry.missed.reshape(-1)
+    y_last, missed = carry.y_last.reshape(-1), cast(np.ndarray, carry.missed).reshape(-1)  # __post_init__ sets missed
     if np.any(~np.isnan(y_last) & ~measured):
         raise ValueError("carry.y_last is finite for a coordinate that carry.measured marks as not measured; "
                          "allowed: y_last NaN until the coordinate's first finite measurement")
@@ -369,8 +375,10 @@ def _merge_carry(end: AxisCarry, n_tracks: int, M: int) -> Carry:
     P = block_diagonal(end.P.reshape(n_tracks, M, 2, 2))
     c = None if end.c is None else end.c.reshape(n_tracks, -1)
     P_c = None if end.P_c is None else end.P_c.reshape(n_tracks, -1, 3)
-    return Carry(x=x, P=P, y_last=end.y_last.reshape(n_tracks, M), measured=end.measured.reshape(n_tracks, M),
-                 c=c, P_c=P_c, missed=end.missed.reshape(n_tracks, M))
+    # the measurement history is set by now (run_from: replace(end, **measurement_history(...)))
+    y_last, measured, missed = (cast(np.ndarray, a) for a in (end.y_last, end.measured, end.missed))
+    return Carry(x=x, P=P, y_last=y_last.reshape(n_tracks, M), measured=measured.reshape(n_tracks, M),
+                 c=c, P_c=P_c, missed=missed.reshape(n_tracks, M))
 
 
 def block_diagonal(blocks: np.ndarray) -> np.ndarray:

@@ -55,7 +55,7 @@ def track_positions(name: str, ys: Sequence[np.ndarray], taus: Sequence[float],
     for T, tau in sorted(set(zip(lengths.tolist(), taus_run.tolist(), strict=False))):
         rows = np.flatnonzero((lengths == T) & (taus_run == tau))
         flt = cls(constant_velocity(tau, ndim=ys[rows[0]].shape[-1]), **{k: v[rows] for k, v in used.items()})
-        est = flt.positions(np.stack([ys[r] for r in rows]))
+        est = flt.positions(np.stack([ys[r] for r in rows.tolist()]))
         for i, r in enumerate(rows):
             out[r] = est[i]
     return out

@@ -173,7 +173,7 @@ class BoxKF(Filter):
             states.reshape(-1, T, means.shape[1], M)[...] = means.transpose(3, 0, 1, 2)
             self._to_boxes(states)
             states[..., M:] /= self.model.tau
-            self._check_finite(states, began, rows)
+            self._check_began_finite(states, began, rows)
             ends.append(X)
         if T == 0:
             end_carry = carry if carry is not None else not_started(n_tracks, M)
@@ -220,7 +220,7 @@ class BoxKF(Filter):
             means[t] = X[_P] if positions_only else mean
         return means
 
-    def _check_finite(self, states: np.ndarray, began: np.ndarray, rows: slice) -> None:
+    def _check_began_finite(self, states: np.ndarray, began: np.ndarray, rows: slice) -> None:
         """Every state (n, T, k) where a track has ``began`` (T, n) must be finite (it is within the documented ranges:
         a non-finite one is a numerical failure, reported rather than returned)."""
         bad = began.T & ~np.isfinite(states).all(-1)

@@ -29,7 +29,7 @@ import copy
 from abc import abstractmethod
 from collections import OrderedDict
 from functools import cached_property
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 import scipy.fft as sfft
@@ -149,8 +149,8 @@ class FIRFilter(Filter):
     def _continue(self, y: np.ndarray, carry: History | None, u: np.ndarray | None,
                   run: Any) -> tuple[np.ndarray, History]:
         if carry is not None and not isinstance(carry, History):
-            raise TypeError(f"{self.name}: carry is a {type(carry).__name__}; allowed: None or a bboxtune.filters.history.History "
-                            "(the FIR family's carry is its measurement history)")
+            raise TypeError(f"{self.name}: carry is a {type(carry).__name__}; allowed: None or a "
+                            "bboxtune.filters.history.History (the FIR family's carry is its measurement history)")
         Y, batched = check_measurements(y, self.model.M)
         self._check_input(u, Y.shape, batched)  # no camera states: refuses a u
         span, lead, history = continue_span(Y, carry, int(np.max(self.params["horizon"])) + 1)
@@ -337,7 +337,7 @@ class FIRFilter(Filter):
             for u, g in zip(misses, fresh, strict=False):
                 GAINS.put(keys[u], g)
                 found[u] = g
-        return np.stack(found)
+        return np.stack(cast("list[np.ndarray]", found))  # every miss filled above
 
 
 def correlate(y0: np.ndarray, W: np.ndarray, group: np.ndarray, wrap: bool = False) -> np.ndarray:

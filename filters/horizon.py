@@ -24,7 +24,7 @@ def n_opt(sigma_v: float | np.ndarray, sigma_w: float | np.ndarray, tau: float |
     return float(out) if out.ndim == 0 else out
 
 
-def rule_horizon(sigma_v: float | np.ndarray, sigma_w: float | np.ndarray, tau: float, K: int,
+def rule_horizon(sigma_v: float | np.ndarray, sigma_w: float | np.ndarray, tau: float | np.ndarray, K: int,
                  max_horizon: int = 10_000) -> int | np.ndarray:
     """The rule's horizon as a usable integer: ``round(N_opt)`` clipped to [K, max_horizon]
     (clipping is part of this function's definition; the unclipped value is :func:`n_opt`)."""

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
@@ -147,7 +147,7 @@ def gain_recursion(kinds: np.ndarray, tables: StepTables,
     coef = np.empty((T, 6, G))
     settled = np.all(kinds == kinds[:, -1:], axis=1)
     settled_from = np.where(settled, 0, T - np.argmax(kinds[:, ::-1] != kinds[:, -1:], axis=1)).max()
-    start = tuple(P_start.reshape(4, G))
+    start: tuple[Any, ...] = tuple(P_start.reshape(4, G))  # rows of P_start (4 × (G,)), or 4 floats below
     if G == 1:  # Python floats
         table = [tuple(entries) for entries in flat[:, :, 0].tolist()]
         cross = [tuple(M) if c else None for M, c in zip(tables.M[:, :, 0].tolist(), correlated, strict=False)]
@@ -330,7 +330,8 @@ def filter_channels(m: np.ndarray, kinds: np.ndarray, row_params: np.ndarray, x_
     key = np.concatenate([row_params.reshape(C, -1), P_start.reshape(C, 4)], axis=1)
     first_of_row, row_of_channel = _group_rows(np.ascontiguousarray(key).view(np.uint64), kinds)
     if recursion is None:
-        recursion = lambda k, p, P: gain_recursion(k, build_tables(p), P)  # noqa: E731
+        tables_of = cast("Callable[[np.ndarray], StepTables]", build_tables)  # given where recursion is not
+        recursion = lambda k, p, P: gain_recursion(k, tables_of(p), P)  # noqa: E731
     coef, steady_from, P_rows = recursion(kinds[first_of_row], row_params[first_of_row],
                                           P_start[first_of_row].transpose(1, 2, 0))
     states = apply_affine(coef, steady_from, row_of_channel, m, x_start)

@@ -70,7 +70,7 @@ Conventions
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
@@ -116,7 +116,7 @@ class KFCMN(FramePrior, Filter):
         if start is None:
             y_before, missed = np.full(len(z), np.nan), np.zeros(len(z), np.int64)
         else:
-            y_before, missed = start.y_last, start.missed
+            y_before, missed = cast(np.ndarray, start.y_last), cast(np.ndarray, start.missed)  # set in a given start
         kinds, gaps, m = differenced_kinds(kinds, z, finite, y_before, missed, psi)
         row_params = np.stack([params["sigma_w"], params["sigma_v"], psi], axis=1)
         states, P_end = filter_channels(m, kinds, row_params, x_start, P_start, lambda p: cmn_tables(axis, p, gaps))

@@ -103,7 +103,7 @@ class UFIR(FIRFilter):
             x[:, 0] = np.nan
         else:
             counts = np.cumsum(np.stack(row_statistics(plain, diff)), axis=2)  # rows 0 … n of each kind
-            x[~determined(*counts, psi[:, None])] = np.nan
+            x[~determined(counts[0], counts[1], counts[2], counts[3], psi[:, None])] = np.nan
         x[..., 0] = x[..., 0] * f[:, 0] + x[..., 1] * f[:, 1]  # x̂_n = F^n x̂_0: position H F^n x̂_0, same velocity
         return x
 
@@ -373,8 +373,8 @@ def row_statistics(plain: np.ndarray, diff: np.ndarray) -> tuple[np.ndarray, ...
     return plain.astype(float), diff.astype(float), plain * frame, diff * frame
 
 
-def determined(n_plain: np.ndarray, n_diff: np.ndarray, sum_plain: np.ndarray, sum_diff: np.ndarray,
-               psi: np.ndarray) -> np.ndarray:
+def determined(n_plain: np.ndarray | float, n_diff: np.ndarray | float, sum_plain: np.ndarray | float,
+               sum_diff: np.ndarray | float, psi: np.ndarray) -> np.ndarray:
     """True where a window's rows determine the two-state CV state, decided exactly from row counts and frame
     sums. A differenced row at frame l is (1 − ψ)·[1, −τ(n − l − ψ/(1−ψ))] and an undifferenced one
     [1, −τ(n − l)], so two rows are parallel only if one of each has ``l_plain − l_diff = ψ/(1 − ψ)`` (possible for

@@ -83,7 +83,8 @@ class UFIRCMN(UFIR):
 
     def observable(self, valid: np.ndarray, params: dict[str, np.ndarray]) -> np.ndarray:
         plain, diff = self._kinds(valid, params)
-        return determined(*(a.sum(axis=-1) for a in row_statistics(plain, diff)), params["psi"])
+        n_plain, n_diff, sum_plain, sum_diff = (a.sum(axis=-1) for a in row_statistics(plain, diff))
+        return determined(n_plain, n_diff, sum_plain, sum_diff, params["psi"])
 
     def _kinds(self, valid: np.ndarray, params: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """Row kinds (P, L) of raw windows ``valid`` (P, L) (:func:`bboxtune.filters.ufir.row_kinds`); the oldest sample

@@ -66,7 +66,7 @@ covariance with [q, r, c]) with this call's parameters.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
@@ -148,10 +148,11 @@ class UKF(Filter):
             x0[:, :2], P0[:, :2, :2] = x_start[camera], P_start[camera]
             P0[:, 2, 2] = VELOCITY_PRIOR_SCALE**2 * var_v[camera] / axis.tau**2
             carried = np.zeros(n_cam, dtype=bool) if start is None else ~np.isnan(start.x[camera, 0])
-            if carried.any():  # continue the camera state c and its covariance with [q, r, c]
-                x0[carried, 2] = start.c[carried]
-                P0[carried, 2, :] = start.P_c[carried]
-                P0[carried, :, 2] = start.P_c[carried]
+            if start is not None and carried.any():  # continue the camera state c and its covariance with [q, r, c]
+                c, P_c = cast(np.ndarray, start.c), cast(np.ndarray, start.P_c)  # a camera filter's carry has both
+                x0[carried, 2] = c[carried]
+                P0[carried, 2, :] = P_c[carried]
+                P0[carried, :, 2] = P_c[carried]
             meas, R = z[None, camera].transpose(0, 2, 1), var_v[None, camera]
             if u is not None:
                 meas = np.stack([z[camera], u[camera]]).transpose(0, 2, 1)
@@ -300,7 +301,8 @@ def _sigma_recursion_one_row(kinds: np.ndarray, params: np.ndarray, P_start: np.
         """Σ W^c χ χᵀ of the centred points χ = [0, ±(a0, a1), ±(c0, c1)] (eqs. 4, 8, 10)."""
         d = ((0.0, 0.0), (a0, a1), (c0, c1), (-a0, -a1), (-c0, -c1))
         w = (wc0, wi, wi, wi, wi)
-        return (sum(wk * x * x for wk, (x, _) in zip(w, d, strict=False)), sum(wk * x * y for wk, (x, y) in zip(w, d, strict=False)),
+        return (sum(wk * x * x for wk, (x, _) in zip(w, d, strict=False)),
+                sum(wk * x * y for wk, (x, y) in zip(w, d, strict=False)),
                 sum(wk * y * y for wk, (_, y) in zip(w, d, strict=False)))
 
     def root(a00: float, a01: float, a11: float) -> tuple[float, float, float] | None:
@@ -345,7 +347,8 @@ def _sigma_recursion_one_row(kinds: np.ndarray, params: np.ndarray, P_start: np.
 
 
 def unscented_filter(y: np.ndarray, kinds: np.ndarray, F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray,
-                     x_start: np.ndarray, P_start: np.ndarray, weights: tuple[np.ndarray, ...]) -> np.ndarray:
+                     x_start: np.ndarray, P_start: np.ndarray,
+                     weights: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Batched linear UKF over C channels (channel axis last), frame by frame: measurements ``y`` (p, T, C) with
     NaN = missing (row 0 decides the frame ``kinds`` (C, T) of :func:`bboxtune.filters.kalman_core.frame_kinds`), transition
     ``F`` (n, n), observation ``H`` (p, n), ``Q`` (n, n, C), ``R`` (p, C) diagonal measurement variances, start

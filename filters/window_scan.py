@@ -34,6 +34,8 @@ A, C and J depend on the missing frames and q only, b and η are linear in the s
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
 PIECE = 8192  # elements per call of combine outside the scans (its ~60 temporaries then stay in cache)
@@ -282,7 +284,8 @@ def window_estimates(layout: BlockLayout, prefix: Elements, suffix: Elements, le
         for k in range(0, windows.size, PIECE):
             w = windows[k:k + PIECE]
             g = compose[kind](w)
-            est[..., w, :] = flat_prior_estimate(g) if mean is None else prior_estimate(g, mean[..., w, :], cov[w])
+            est[..., w, :] = (flat_prior_estimate(g) if mean is None
+                              else prior_estimate(g, mean[..., w, :], cast(np.ndarray, cov)[w]))  # given with mean
     return est, inside
 
 

@@ -1,4 +1,4 @@
-"""The packages' import structure (README "Architecture"): layers import downwards only, no import cycles, no
+"""The packages' import structure (docs/api.md, "Architecture"): layers import downwards only, no import cycles, no
 imports hidden inside functions except the documented ones, no Gymnasium below the env layer, and every import of
 ours through the one namespace ``bboxtune`` (module names here are written without that prefix).
 

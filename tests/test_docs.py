@@ -50,7 +50,7 @@ def sections(text: str) -> list[tuple[str, str]]:
     """The ``## `` sections of a Markdown text outside code blocks: (title, body)."""
     outside = re.sub(r"^```.*?^```\s*$", "", text, flags=re.S | re.M)
     parts = re.split(r"^## (.+)$", outside, flags=re.M)
-    return list(zip(parts[1::2], parts[2::2]))
+    return list(zip(parts[1::2], parts[2::2], strict=False))
 
 
 def command_lines(code: str) -> list[str]:

@@ -24,6 +24,7 @@ block (the fixed rule's gains repeat and are cached, as in training). No unit te
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING, cast
 
 import gymnasium as gym
 import numpy as np
@@ -38,6 +39,11 @@ from bboxtune.agents.training.runs import make_vec
 from bboxtune.envs.episodes.actions import BACKENDS
 from bboxtune.envs.episodes.config import EnvConfig
 from bboxtune.envs.episodes.scoring import run_positions
+
+if TYPE_CHECKING:
+    from bboxtune.agents.training.batched import TuneVecEnv
+    from bboxtune.envs.episodes.episode import Episode
+    from bboxtune.envs.tune_env import FilterTuneEnv
 
 
 def rates(count: int, fn, repeat: int) -> tuple[float, float]:
@@ -89,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"[1b] reset(seed=i) + step (a Gymnasium evaluation loop): {seeded_rate:,.0f} ({seeded_median:,.0f}) steps/s, "
           f"{step_rate / seeded_rate:.2f}x the time of reset() + step (target <= 1.5x)")
 
-    u = env.unwrapped
+    u = cast("FilterTuneEnv", env.unwrapped)  # gymnasium types env.unwrapped as a plain Env
     rng = np.random.default_rng(args.seed)
     batches = rng.uniform(-1, 1, (args.repeat, args.calls, args.candidates, u.action_map.dim)).astype(np.float32)
 
@@ -103,9 +109,10 @@ def main(argv: list[str] | None = None) -> int:
           "episodes/s (target >= 5,000)")
 
     env.reset(seed=args.seed)
-    ep = u.episode
+    ep = cast("Episode", u.episode)  # set by the reset
     params = u.action_map.to_params(actions[0][0], ep.nominal)
-    filter_rate, _ = rates(args.episodes, lambda r: [run_positions(args.backend, ep.y, ep.tau, params) for _ in range(args.episodes)],
+    filter_rate, _ = rates(args.episodes,
+                           lambda r: [run_positions(args.backend, ep.y, ep.tau, params) for _ in range(args.episodes)],
                            args.repeat)
     print(f"[3] the filter alone (one candidate, its gains cached): {filter_rate:,.0f} runs/s; a step costs "
           f"{filter_rate / step_rate:.1f} filter runs (a step includes a rule run, the simulation, features, scoring)")
@@ -124,14 +131,15 @@ def batched_rates(args) -> tuple[float, float, float]:
                     split="train", n_envs=args.n_envs, seed=args.seed, vec_env="batched")
     venv.reset()
     rng = np.random.default_rng(args.seed)
-    actions = rng.uniform(-1, 1, (args.repeat, args.vec_steps, args.n_envs, venv.action_space.shape[0])).astype(np.float32)
+    n_actions = cast("tuple[int, ...]", venv.action_space.shape)[0]  # a Box
+    actions = rng.uniform(-1, 1, (args.repeat, args.vec_steps, args.n_envs, n_actions)).astype(np.float32)
 
     def vec_steps(r: int) -> None:
         for a in actions[r]:
             venv.step(a)
 
     best, median = rates(args.vec_steps * args.n_envs, vec_steps, args.repeat)
-    episodes = [p[0] for p in venv.batch.prepared[:args.filterpy_tracks]]
+    episodes = [p[0] for p in cast("TuneVecEnv", venv).batch.prepared[:args.filterpy_tracks]]  # vec_env="batched"
     y = np.stack([ep.y for ep in episodes])
     model = filters.constant_velocity(float(episodes[0].tau), ndim=4)  # filterpy's cost does not depend on τ
     nominal = episodes[0].nominal

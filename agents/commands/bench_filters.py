@@ -37,6 +37,8 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import replace
+from functools import partial
+from typing import TypeVar, cast
 
 import numpy as np
 
@@ -48,15 +50,16 @@ from bboxtune.filters.ufir import ufir_iterative
 SECTIONS = ("reference", "backends", "wide", "long")
 SIGMA_W, SIGMA_V, PSI = 50.0, 4.0, 0.6  # every section: the [Shmaliy-CMN] set-up (px/s², px, –)
 TAU = 1 / 30  # s, the box tracks of sections 4–5
+Result = TypeVar("Result")
 
 
-def best_time(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
+def best_time(fn: Callable[[], Result], repeat: int) -> tuple[float, Result]:
     best, out = np.inf, None
     for _ in range(repeat):
         t0 = time.perf_counter()
         out = fn()
         best = min(best, time.perf_counter() - t0)
-    return best, out
+    return best, cast(Result, out)  # repeat >= 1: fn ran
 
 
 def filterpy_loop(y: np.ndarray, model: filters.StateSpaceModel, sigma_w: float, sigma_v: float,
@@ -80,9 +83,11 @@ def filterpy_loop(y: np.ndarray, model: filters.StateSpaceModel, sigma_w: float,
 def backend_params(name: str, horizon: int) -> dict[str, float]:
     """The parameters every section runs back end ``name`` with."""
     sigma = {"sigma_w": SIGMA_W, "sigma_v": SIGMA_V}
-    return {"kf": sigma, "kf_cmn": {**sigma, "psi": PSI}, "ufir": {"horizon": horizon},
-            "ufir_cmn": {"horizon": horizon, "psi": PSI}, "ofir": {**sigma, "horizon": horizon},
-            "oufir": {**sigma, "horizon": horizon}, "fir": {**sigma, "horizon": horizon}, "ukf": sigma}[name]
+    params: dict[str, dict[str, float]] = {
+        "kf": sigma, "kf_cmn": {**sigma, "psi": PSI}, "ufir": {"horizon": horizon},
+        "ufir_cmn": {"horizon": horizon, "psi": PSI}, "ofir": {**sigma, "horizon": horizon},
+        "oufir": {**sigma, "horizon": horizon}, "fir": {**sigma, "horizon": horizon}, "ukf": sigma}
+    return params[name]
 
 
 def box_tracks(n_tracks: int, n_frames: int, missing: float, seed: int) -> np.ndarray:
@@ -193,7 +198,7 @@ def speed_sections(args: argparse.Namespace) -> None:
         for name in filters.NAMES:
             params = backend_params(name, args.horizon)  # σ_w, σ_v, ψ of the [Shmaliy-CMN] set-up
             flt = filters.make(name, model, **params)
-            t, _ = best_time(lambda: flt.run(y), args.repeat)
+            t, _ = best_time(partial(flt.run, y), args.repeat)
             print(f"    {name:9s} {n_updates / t:>14,.0f}   ({', '.join(f'{k}={v}' for k, v in params.items())})")
         boxes = box_tracks(args.tracks, args.frames, args.missing, args.seed)
         boxes[..., 2:] = 20.0 + np.abs(boxes[..., 2:] - 200.0)  # sizes >= 20 px: the peers need w, h > 0
@@ -202,7 +207,7 @@ def speed_sections(args: argparse.Namespace) -> None:
         for name in ("kf", *filters.PEER_NAMES):
             params = backend_params(name, args.horizon) if name == "kf" else {}
             flt = filters.make(name, filters.constant_velocity(TAU, ndim=4), **params)
-            t, _ = best_time(lambda: flt.run(boxes), args.repeat)
+            t, _ = best_time(partial(flt.run, boxes), args.repeat)
             print(f"    {name:12s} {n_updates / t:>14,.0f}")
 
 

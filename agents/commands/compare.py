@@ -88,7 +88,7 @@ import shlex
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import torch
@@ -136,12 +136,18 @@ from bboxtune.agents.training.safe_load import check_env_match
 from bboxtune.envs.data.atomic_files import write_text_atomic
 from bboxtune.envs.episodes.config import EnvConfig
 
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.agents.evaluation.gate import GatedPolicy
+    from bboxtune.envs.episodes.sources import OTBSource
+    from bboxtune.envs.track_env import TrackEnv
+
 ENVS = (ONE_STEP_ENV, RETUNE_ENV)
 MIN_TRAIN_EPISODES = 11  # AmortisedPolicy's MLP holds out ceil(10 %) for early stopping and needs >= 2 of them
 DEFAULT_EPISODES = 500  # sim / video
 DEFAULT_SEEDS_PER_SEQUENCE = 5  # source otb: 23 test sequences × 5 = 115 episodes
 GATES = "gates"  # --gate: the fitted gates, <name>.json (bboxtune.agents.policies.gate_file), for smooth.py --gate
-DEFAULT_VAL_EPISODES = 100  # sim / video val episodes the margins of window_anchored/_residual (--oneshot-model) and the gates (--gate) are chosen on
+# sim / video val episodes the margins of window_anchored/_residual (--oneshot-model) and the gates (--gate) are chosen on
+DEFAULT_VAL_EPISODES = 100
 
 
 def build_parser() -> ArgumentParser:
@@ -155,8 +161,8 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--env", default=None, metavar="ID",
                    help=f"env id (default: the run's; one of {ENVS}, the run's kind); without --model: {RETUNE_ENV}")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
-                   help="override the run's env arguments (bboxtune.envs.episodes.config.EnvConfig fields, YAML values; KEY:VALUE also "
-                        "accepted), e.g. source=otb track_length=100; the split is --split")
+                   help="override the run's env arguments (bboxtune.envs.episodes.config.EnvConfig fields, YAML values; "
+                        "KEY:VALUE also accepted), e.g. source=otb track_length=100; the split is --split")
     p.add_argument("--trackers", type=tracker_set, default=None, metavar="SET",
                    help="source otb_tracker: score these trackers' output instead of the run's: 'test' (the held-out "
                         "trackers of bboxtune.envs.data.otb.TRACKER_SPLIT), 'train' or comma-separated names")
@@ -183,7 +189,8 @@ def build_parser() -> ArgumentParser:
                         "sim and video sources: OTB sources take every val sequence, once for the anchored margins and "
                         "--seeds-per-sequence times for the gates, and every tracker's output of it)")
     p.add_argument("--gate", action="store_true",
-                   help=f"{ONE_STEP_ENV} runs: also score each final model gated as <algo>{GATED}[_s<seed>] (bboxtune.agents.evaluation.gate: "
+                   help=f"{ONE_STEP_ENV} runs: also score each final model gated as <algo>{GATED}[_s<seed>] "
+                        "(bboxtune.agents.evaluation.gate: "
                         "its action where a regressor predicts it beats the raw measurements by more than a margin, else "
                         "the measurements left alone; fitted on --train-episodes train and chosen on --val-episodes val "
                         "episodes of the run's own env)")
@@ -232,8 +239,9 @@ def env_flags(args: argparse.Namespace) -> str:
 
 
 def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env) -> list[EpisodeSpec]:
-    """The episodes to score (bboxtune.agents.evaluation.evaluate.evaluation_episodes), after checking the flags that choose them."""
-    source = env.unwrapped.config.source
+    """The episodes to score (bboxtune.agents.evaluation.evaluate.evaluation_episodes), after checking the flags that
+    choose them."""
+    source = cast("TrackEnv", env.unwrapped).config.source
     k = args.seeds_per_sequence
     if source in OTB_SOURCES and args.episodes is not None:
         parser.error(f"--episodes: source {source!r} enumerates its episodes (every {args.split}-split sequence × "
@@ -270,7 +278,8 @@ def load_seed_runs(runs: list[Path], cfg: dict[str, Any], env: gym.Env, trust_pi
             raise RunError(f"{run}: {other['algo']} on {other['env_id']} {other['env_kwargs']}; several --model must be "
                            f"runs of one algorithm and env ({runs[0]}: {cfg['algo']} on {cfg['env_id']} {cfg['env_kwargs']})")
         if other["seed"] in seeds:
-            raise RunError(f"{run}: seed {other['seed']} again (also {seeds[other['seed']]}); several --model need distinct seeds")
+            raise RunError(f"{run}: seed {other['seed']} again (also {seeds[other['seed']]}); several --model need distinct "
+                           "seeds")
         seeds[other["seed"]] = run
         learned += load_learned(run, other, env, trust_pickle, suffix=f"_s{other['seed']}")
     algo = cfg["algo"]
@@ -337,10 +346,10 @@ def run(argv: list[str] | None = None) -> Path:
         parser.error(str(err))
     models = (learned, groups, describe_models(args.model, runs, learned, cfg))
     if env_id == RETUNE_ENV:
-        described = describe_episodes(args, test_env.unwrapped.config.source, episodes)
+        described = describe_episodes(args, cast("TrackEnv", test_env.unwrapped).config.source, episodes)
         return compare_retune(args, cfg, (test_env, train_env, env_kwargs), (episodes, described), models, oneshot, out,
                               command)
-    config = test_env.unwrapped.config
+    config = cast("TrackEnv", test_env.unwrapped).config
     algo, source = cfg["algo"], config.source
     print(f"seed: {args.seed}\n{algo} from {args.model}: {env_id} {env_kwargs}, {len(episodes)} {args.split} episodes")
     search = GridSearch(budget=args.oracle_budget)
@@ -351,7 +360,8 @@ def run(argv: list[str] | None = None) -> Path:
     start = time.perf_counter()
     fitted = fit_baselines(train_env, oracle, settings, progress=True)
     print(f"fitted global and amortised on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
-    gated, gate_line, fitted_on = [], None, ""
+    gated: list[GatedPolicy] = []
+    gate_line, fitted_on = None, ""
     if args.gate:
         start = time.perf_counter()
         finals = [p for p in learned if not p.name.startswith(f"{algo}_best")]
@@ -388,8 +398,9 @@ def run(argv: list[str] | None = None) -> Path:
                              f"({search.refine} points per dimension) maximising the env's reward ({config.reward}); "
                              f"{other}; the rules' actions are candidates",
                    **({"gate (--gate)": gate_line} if gate_line else {})}
-    attributes = ({name: test_env.unwrapped.source.dataset.sequence(name).attributes for name in
-                   {e.sequence for e in episodes}} if source in OTB_SOURCES else None)
+    pool = cast("OTBSource", cast("TrackEnv", test_env.unwrapped).source)  # used where source is an OTB one
+    attributes = ({name: pool.dataset.sequence(name).attributes for name in
+                   {cast(str, e.sequence) for e in episodes}} if source in OTB_SOURCES else None)  # OTB: all named
     summary = summary_markdown(result.rows, result.truth_at_test, learned=[p.name for p in (*learned, *gated)],
                                title=title,
                                settings=settings_md, figures=["gain_boxplot.png", "otb_curves.png", "trajectory.png",

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn, cast
 
 import gymnasium as gym
 import numpy as np
@@ -58,6 +58,9 @@ from bboxtune.agents.training.run_files import RunError
 from bboxtune.agents.training.runs import ENV_ERRORS, SB3Policy, describe_held_features, load_config, make_env
 from bboxtune.agents.training.safe_load import check_env_match
 from bboxtune.envs import RETUNE_ID, TUNE_ID
+
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.envs.retune_env import FilterRetuneEnv
 from bboxtune.envs.data.atomic_files import write_text_atomic
 from bboxtune.envs.episodes.config import EnvConfig
 
@@ -73,13 +76,15 @@ def add_retune_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"{RETUNE_ENV} runs: a {ONE_STEP_ENV} run scored as oneshot_learned (its action for the whole "
                         "track); without it that row is left out")
     p.add_argument("--anchor-margin", type=float_range(0.0), default=None, metavar="M",
-                   help=f"{RETUNE_ENV} runs with --oneshot-model: the margin of {WINDOW_ANCHORED} and {WINDOW_RESIDUAL} (predicted log-RMSE "
-                        "gain a switch away from the one-shot action must exceed), instead of choosing it on val episodes")
+                   help=f"{RETUNE_ENV} runs with --oneshot-model: the margin of {WINDOW_ANCHORED} and {WINDOW_RESIDUAL} "
+                        "(predicted log-RMSE gain a switch away from the one-shot action must exceed), instead of choosing "
+                        "it on val episodes")
     p.add_argument("--regime-informed", action="store_true",
                    help=f"{RETUNE_ENV} with scenario=nonstationary (source sim): also fit {WINDOW_AMORTISED} told the true "
-                        f"regime schedule, scored as {WINDOW_REGIME_INFORMED}[_s<k>], and {REGIME_ORACLE}, the best action per true "
-                        "regime state chosen with the truth (bboxtune.agents.evaluation.regime_informed: references that use the truth, for "
-                        "the share of the one-shot → per-window gap that knowing the regimes reaches)")
+                        f"regime schedule, scored as {WINDOW_REGIME_INFORMED}[_s<k>], and {REGIME_ORACLE}, the best action "
+                        "per true regime state chosen with the truth (bboxtune.agents.evaluation.regime_informed: "
+                        "references that use the truth, for the share of the one-shot → per-window gap that knowing the "
+                        "regimes reaches)")
 
 
 def check_retune_flags(error: Callable[[str], NoReturn], args: argparse.Namespace, env_id: str) -> None:
@@ -116,7 +121,8 @@ def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneSho
     try:
         tune_env = make_env(ONE_STEP_ENV, env_kwargs, split=args.split)
     except ENV_ERRORS as err:
-        raise RunError(f"--oneshot-model: env {ONE_STEP_ENV} {env_kwargs} cannot be built ({' '.join(str(err).split())})") from None
+        raise RunError(f"--oneshot-model: env {ONE_STEP_ENV} {env_kwargs} cannot be built "
+                       f"({' '.join(str(err).split())})") from None
     policy = SB3Policy.load(args.oneshot_model, "final", trust_pickle=args.trust_pickle)
     check_env_match(args.oneshot_model / "model.zip", policy.model, cfg, tune_env)
     return OneShotLearned(policy, tune_env)
@@ -154,7 +160,7 @@ def fit_window_regressors(train_env: gym.Env, args: argparse.Namespace, anchors:
         noise_seeds = train_seeds(np.random.default_rng(seed), args.train_episodes)
         start = time.perf_counter()
         regressor, candidates = fit_regressor(train_env, noise_seeds, seed=seed,
-                                              anchor=anchors and anchors.by_split["train"], progress=True)
+                                              anchor=anchors.by_split["train"] if anchors else None, progress=True)
         amortised.append(WindowRegressorPolicy(regressor, candidates, name=WINDOW_AMORTISED + suffix))
         print(f"fitted {amortised[-1].name} on {args.train_episodes} train episodes in {time.perf_counter() - start:.0f} s")
         if args.regime_informed:
@@ -191,8 +197,8 @@ def anchored_settings(anchored: list[AnchoredWindowPolicy], val_means: dict[str,
     if around_anchor:
         settings = WindowRegressorSettings()
         what = (f"a second regressor on the same episodes whose candidates are `oneshot_learned`'s action moved by "
-                f"{len(policies[0].candidates)} offsets ({settings.residual_points} per dimension in ±{settings.residual_step:g}, "
-                f"clipped to the action box), its input the observation and that action")
+                f"{len(policies[0].candidates)} offsets ({settings.residual_points} per dimension in "
+                f"±{settings.residual_step:g}, clipped to the action box), its input the observation and that action")
     else:
         what = "the same regressor(s), anchored at `oneshot_learned`'s action"
     chosen = ", ".join(f"{p.name} {p.margin:g}" for p in policies)
@@ -215,10 +221,11 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     env, train_env, env_kwargs = envs_and_kwargs
     episodes, described = episodes_described
     learned, groups, models_described = models
-    config = env.unwrapped.config
+    config = cast("FilterRetuneEnv", env.unwrapped).config
     search = GridSearch(budget=args.oracle_budget)
     scored = f"{cfg['algo']} from {args.model}" if learned else "no trained tuner (no --model)"
-    print(f"seed: {args.seed}\n{scored}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} episodes, window {config.window}")
+    print(f"seed: {args.seed}\n{scored}: {RETUNE_ENV} {env_kwargs}, {len(episodes)} {args.split} episodes, "
+          f"window {config.window}")
     anchors = Anchors.build(oneshot, env_kwargs, args.val_episodes) if oneshot else None
     regressors, anchored, val_means = fit_window_regressors(train_env, args, anchors)
     online = [OneShotLearned(oneshot.policy, oneshot.tune_env, online=True)] if oneshot else []
@@ -230,7 +237,8 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     result = evaluate_retune(env, methods, episodes, progress=True)
     print(f"scored {len(result.truth_at_test)} methods on {len(episodes)} episodes in {time.perf_counter() - start:.0f} s")
     write_results_csv(out / "results.csv", result.rows)
-    title = f"{cfg['algo'] if learned else 'window tuners'} vs baselines · {RETUNE_ENV} · backend {config.backend} · source {config.source}"
+    title = (f"{cfg['algo'] if learned else 'window tuners'} vs baselines · {RETUNE_ENV} · backend {config.backend} · "
+             f"source {config.source}")
     gain_boxplot(out / "gain_boxplot.png", by_method(result.rows, "log_ratio"), title)
     ex = result.example
     plotted = ("rule", ONESHOT_ORACLE, WINDOW_ORACLE, regressors[0].name, *(p.name for p in anchored[:2]),
@@ -238,16 +246,18 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
     shown = {k: v for k, v in ex["schedules"].items() if k in plotted}
     parameter_schedule(out / "parameter_schedule.png", shown, ex["scenario"], f"{title}\ntest episode 0")
     settings_md = {"command": f"`{command}`", "model": models_described,
-                   "oneshot_learned": f"`{args.oneshot_model}` (its final model)" if oneshot else "not scored (no --oneshot-model)",
+                   "oneshot_learned": (f"`{args.oneshot_model}` (its final model)" if oneshot
+                                       else "not scored (no --oneshot-model)"),
                    "inputs held at their training value": describe_held_features(
                        {**{p.name: p.normalizer for p in learned},
                         **({ONESHOT_LEARNED: oneshot.policy.normalizer} if oneshot and isinstance(oneshot.policy, SB3Policy)
                            else {})},
-                       {p.name: env.unwrapped.observation_names for p in learned}),
+                       {p.name: cast("FilterRetuneEnv", env.unwrapped).observation_names for p in learned}),
                    WINDOW_AMORTISED: f"{', '.join(p.name for p in regressors if not isinstance(p, RegimeInformedPolicy))}: "
                                      f"per-window regressor(s) "
-                                     f"(bboxtune.agents.evaluation.window_regressor, {len(regressors[0].candidates)} candidate actions) fitted "
-                                     f"on {args.train_episodes} train-split episodes each (seeds {args.seed} … "
+                                     f"(bboxtune.agents.evaluation.window_regressor, {len(regressors[0].candidates)} "
+                                     f"candidate actions) fitted on {args.train_episodes} train-split episodes each "
+                                     f"(seeds {args.seed} … "
                                      f"{args.seed + args.fit_seeds - 1})"
                                      + (f"; its candidates include the `oneshot_learned` action (the anchor of "
                                         f"{WINDOW_ANCHORED})" if anchors else ""),
@@ -256,7 +266,8 @@ def compare_retune(args: argparse.Namespace, cfg: dict[str, Any], envs_and_kwarg
                                                "(bboxtune.agents.evaluation.regime_informed, --regime-informed)",
                        REGIME_ORACLE: "in every window of a true regime state (noise regime × manoeuvre × gap, the "
                                       "window's majority) the action with the lowest squared error over that state's "
-                                      "windows, with the truth, searched as the oracles (bboxtune.agents.evaluation.regime_informed)"}
+                                      "windows, with the truth, searched as the oracles "
+                                      "(bboxtune.agents.evaluation.regime_informed)"}
                       if args.regime_informed else {}),
                    **({WINDOW_ANCHORED: anchored_settings(anchored, val_means, anchors, around_anchor=False),
                        WINDOW_RESIDUAL: anchored_settings(anchored, val_means, anchors, around_anchor=True)} if anchors else {}),

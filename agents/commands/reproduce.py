@@ -32,6 +32,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -126,7 +127,8 @@ def run_otb(settings: Settings, dataset: OTBDataset) -> Experiments:
 
 def _with(section: Section, figures: dict, module: object | None) -> Section:
     """``section`` with its figures and, first, the set-up text of ``module`` (its docstring after the title)."""
-    setup = "" if module is None else module.__doc__.split("\n\n", 1)[1].replace("``", "`").strip() + "\n\n"
+    # (the reproduce modules all have a docstring)
+    setup = "" if module is None else cast(str, module.__doc__).split("\n\n", 1)[1].replace("``", "`").strip() + "\n\n"
     section.markdown = setup + section.markdown
     section.figures = figures
     return section
@@ -143,10 +145,10 @@ def render(sections: list[Section], command: str, settings: Settings) -> str:
         f"numpy {np.__version__}.",
         "",
         "The papers ([Shmaliy-CMN] … [Mo-FIR]) and their full references are in `docs/references.md`. They give few "
-        "numbers: [Shmaliy-CMN] has curves only (Fig. 2 is read off the plot, so its claims are compared, not its values), [Mo-FIR] Table I "
-        "and [PaleRamon-BBox] §9.2 print RMSEs under set-ups they do not fully state. Each table row quotes the paper "
-        "where it has numbers, gives ours, and a one-line verdict; 'agrees' means the claim holds in our numbers "
-        "under the threshold stated in brackets.",
+        "numbers: [Shmaliy-CMN] has curves only (Fig. 2 is read off the plot, so its claims are compared, not its "
+        "values), [Mo-FIR] Table I and [PaleRamon-BBox] §9.2 print RMSEs under set-ups they do not fully state. "
+        "Each table row quotes the paper where it has numbers, gives ours, and a one-line verdict; 'agrees' means "
+        "the claim holds in our numbers under the threshold stated in brackets.",
         "",
     ]
     body = []

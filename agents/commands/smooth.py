@@ -19,12 +19,11 @@ name, x,y,w,h with 3 decimals per line, one line per input line: the back end's 
 without a box in the input are predicted from the others; frames before the first box, and any frame whose
 smoothed w or h is <= 0, are written 0,0,0,0 (counted in params.csv). A gated tuner (--gate FILE, a gate that
 compare.py --gate fitted for this tuner, or a gate.json in the tuner's folder unless --no-gate;
-bboxtune.agents.evaluation.gate) writes
-a sequence where its gate stays closed as read instead. params.csv: sequence, n_frames, n_missing_in,
-n_missing_out, left_alone (1: written as read) and the chosen parameters (e.g. psi, horizon; exact values; what the
-model sets, also where the sequence is left alone). With --otb-root the sequences found there are scored, raw and
-smoothed, by scripts/otb_eval.py's scorer (success AUC, precision at
-20 px, mean over sequences; printed and written to scores.csv).
+bboxtune.agents.evaluation.gate) writes a sequence where its gate stays closed as read instead: the input file's
+bytes, unchanged. params.csv: sequence, n_frames, n_missing_in, n_missing_out, left_alone (1: written as read) and
+the chosen parameters (e.g. psi, horizon; exact values; what the model sets, also where the sequence is left alone).
+With --otb-root the sequences found there are scored, raw and smoothed, by scripts/otb_eval.py's scorer (success
+AUC, precision at 20 px, mean over sequences; printed and written to scores.csv).
 
 --format mot (default otb: all of the above) smooths MOT Challenge tracks one identity at a time
 (agents/smoothing/mot_smooth.py):
@@ -55,6 +54,7 @@ import os
 import tempfile
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -70,13 +70,14 @@ from bboxtune.agents.cli import (
     out_dir,
 )
 from bboxtune.agents.commands.otb_eval import evaluate
-from bboxtune.agents.evaluation.video_tables import csv_text, folder_in_use, publish_folder
+from bboxtune.agents.evaluation.video_tables import csv_text, folder_in_use, publish_folder, write_content
 from bboxtune.agents.smoothing import mot_smooth, pretrained
-from bboxtune.agents.smoothing.stock_filter import STOCK_FILTERS, StockFilter
+from bboxtune.agents.smoothing.stock_filter import STOCK_FILTERS, StockFilter, TrackSmoother
 from bboxtune.agents.smoothing.tuner import DEFAULT_PRETRAINED, MIN_FRAMES, TAU_RANGE, Tuner, check_boxes, load_pretrained
 from bboxtune.envs.data.mot import MOT_ROOT_ENV
 from bboxtune.envs.data.otb import OTBDataset
 from bboxtune.envs.data.otb_io import read_boxes
+from bboxtune.envs.data.textfile import read_bytes
 
 FORMAT_ONLY = {"--tau": "otb", "--otb-root": "otb", "--fps": "mot", "--mot-root": "mot"}
 
@@ -150,17 +151,17 @@ def score(otb_root: str, results: Path) -> dict[str, float | int]:
     return evaluate(OTBDataset(otb_root, trackers_root=folder.parent), [folder.name])[folder.name]
 
 
-def score_smoothed(otb_root: str, files: dict[str, str]) -> dict[str, float | int]:
+def score_smoothed(otb_root: str, files: dict[str, str | bytes]) -> dict[str, float | int]:
     """:func:`score` of the smoothed files as they will be written (a temporary folder holds them meanwhile)."""
     with tempfile.TemporaryDirectory(prefix="smooth-") as tmp:
         folder = Path(tmp) / "smoothed"
         folder.mkdir()
-        for name, text in files.items():
-            (folder / name).write_text(text, encoding="utf-8")
+        for name, content in files.items():
+            write_content(folder / name, content)
         return score(otb_root, folder)
 
 
-def load_tuner(parser: ArgumentParser, args: argparse.Namespace) -> Tuner | StockFilter:
+def load_tuner(parser: ArgumentParser, args: argparse.Namespace) -> TrackSmoother[Any]:
     """The tuner of --model / --pretrained, gated as --gate / --no-gate say, or the stock filter of --filter."""
     if args.filter is not None:
         if args.gate is not None or args.no_gate:
@@ -174,7 +175,7 @@ def load_tuner(parser: ArgumentParser, args: argparse.Namespace) -> Tuner | Stoc
     return replace(tuner, gate=None) if args.no_gate else tuner
 
 
-def smooth_mot(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, str]:
+def smooth_mot(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, str | bytes]:
     """--format mot: the output files (bboxtune.agents.smoothing.mot_smooth; a summary is printed)."""
     with argument_errors(parser, "--results"):
         inputs = mot_smooth.read_inputs(args.results)
@@ -183,7 +184,9 @@ def smooth_mot(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, st
         rates = mot_smooth.frame_rates(inputs, args.fps, root)
     tuner = load_tuner(parser, args)
     keys = tuner.parameters
-    files, table, done = {}, [], []
+    files: dict[str, str | bytes] = {}
+    table: list[list[Any]] = []
+    done: list[tuple[mot_smooth.Smoothed, mot_smooth.Rows]] = []
     for item, rate in zip(inputs, rates, strict=True):
         print(f"{item.name}: {len(item.tracks)} identities, {rate.fps:g} fps ({rate.source})"
               + (f"; {item.n_unmatched} detections matched to no identity are not written" if item.n_unmatched else ""))
@@ -203,7 +206,7 @@ def smooth_mot(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, st
     return files
 
 
-def smooth_otb(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, str]:
+def smooth_otb(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, str | bytes]:
     """--format otb: the output files (a summary and, with --otb-root, the scores are printed)."""
     with argument_errors(parser, "--results"):
         results = read_results(args.results)
@@ -213,11 +216,14 @@ def smooth_otb(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, st
     if args.otb_root is not None:
         with argument_errors(parser, "--otb-root"):
             raw = score(args.otb_root, args.results)
-    files, rows = {}, []
+    files: dict[str, str | bytes] = {}
+    rows: list[list] = []
     for name, (path, boxes) in tqdm(results.items(), desc=f"smooth ({tuner.name})", unit="seq"):
         seen = tuner.observe(boxes, tau)
         params, alone = tuner.params(seen), tuner.leaves_alone(seen)
         files[name], n_missing_out = box_text(boxes if alone else tuner.smooth(boxes, tau, params))
+        if alone:
+            files[name] = read_bytes(path)  # left alone: written byte for byte as read
         n_missing_in = int(np.isnan(boxes).all(axis=1).sum())
         rows.append([path.stem, len(boxes), n_missing_in, n_missing_out, int(alone),
                      *(str(v) for v in params.values())])  # exact

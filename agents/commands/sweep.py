@@ -82,7 +82,7 @@ def _scalar(text: object) -> object:
     """A swept value: int, float or str (as train.py --hyperparams reads it)."""
     for kind in (int, float):
         try:
-            return kind(text)  # type: ignore[arg-type]
+            return kind(text)  # type: ignore[call-overload, arg-type]  # any value: int()/float() raise for one they refuse
         except (TypeError, ValueError):
             pass
     return text

@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -95,8 +96,8 @@ def open_source(args: argparse.Namespace) -> tuple[object, float, np.ndarray | N
         video = synthetic_video(args.seed, VideoRanges(n_frames=args.n_frames))
         return video, 1.0 / video.tau, video.boxes, 0.0, f"synthetic-{args.seed}"
     if args.video:
-        frames = video_file(args.video)
-        return frames, frames.fps, None, 0.0, Path(args.video).stem
+        clip = video_file(args.video)
+        return clip, clip.fps, None, 0.0, Path(args.video).stem
     frames, gt, name = otb_frames(args.frames, sequence=args.sequence, otb_root=args.otb_root)
     if gt is not None:
         gt = gt.copy()
@@ -151,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
         check_free(out, "choose another --out")
         if args.init is None and (gt is None or not np.all(np.isfinite(gt[0]))):
             raise RunError("--init x,y,w,h is required when the first frame has no ground truth")
-        init = user_box(args.init, origin) if args.init else gt[0]
+        init = user_box(args.init, origin) if args.init else cast(np.ndarray, gt)[0]  # gt checked above
         tuner = load_tuner(args.tuned, trust_pickle=args.trust_pickle) if args.tuned else None
         backend = args.filter or (tuner.backend if tuner else "ufir_cmn")
         if tuner is not None and tuner.backend != backend:
@@ -218,11 +219,11 @@ def write_annotated(out: Path, frames, fps: float, truth: np.ndarray, raw: np.nd
                 break
             img = annotate(frame, [(truth[n], _GREEN), (raw[n], _RED), (est[n], _BLUE)], n)
             if writer is None:
-                writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, img.shape[1::-1])
+                writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), fps, img.shape[1::-1])
                 if not writer.isOpened():
                     raise OSError("no MP4 writer")
             writer.write(img)
-        writer.release()
+        cast(cv2.VideoWriter, writer).release()  # opened at the first of the T >= 1 frames
 
     try:
         atomic_write(path, write)

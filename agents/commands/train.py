@@ -34,7 +34,7 @@ import shlex
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium
 import numpy as np
@@ -91,6 +91,9 @@ from bboxtune.envs.episodes.actions import BACKENDS
 from bboxtune.envs.episodes.config import SOURCES, EnvConfig
 from bboxtune.envs.episodes.scoring import reward_label
 
+if TYPE_CHECKING:
+    from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
 DEFAULT_ENV = "bboxtune/FilterTune-v0"
 RESUME_FLAGS = {"--resume", "--timesteps", "--trust-pickle"}  # the only flags a resume takes: the rest is config.yml's
 MODEL_ERRORS = (ValueError, TypeError, KeyError, AssertionError)  # what SB3 constructors raise for bad settings
@@ -121,7 +124,8 @@ def build_parser() -> ArgumentParser:
                    help="with --resume: also read an old run's pickled statistics / replay buffer (pickles can run code)")
     p.add_argument("--tensorboard", action="store_true", help="also log to DIR/tensorboard (needs the tensorboard package)")
     p.add_argument("--eval-freq", type=positive_int, default=10_000, help="timesteps between evaluations on the val split")
-    p.add_argument("--eval-episodes", type=positive_int, default=200, help="val episodes per evaluation (the same ones each time)")
+    p.add_argument("--eval-episodes", type=positive_int, default=200,
+                   help="val episodes per evaluation (the same ones each time)")
     p.add_argument("--checkpoint-freq", type=positive_int, default=20_000, help="timesteps between checkpoints")
     p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY:VALUE",
                    help="override entries of agents/hyperparams/<algo>.yml (YAML values), e.g. n_steps:64 learning_rate:lin_1e-3")
@@ -130,8 +134,8 @@ def build_parser() -> ArgumentParser:
                         "'train' or 'test' of the tracker split (bboxtune.envs.data.otb.TRACKER_SPLIT) or comma-separated names "
                         "(default with those sources: 'train', unless --env-kwargs sets tracker or trackers)")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
-                   help="more env arguments (bboxtune.envs.episodes.config.EnvConfig fields, YAML values; KEY=VALUE or KEY:VALUE, split "
-                        "at the first = or :), e.g. track_length=200")
+                   help="more env arguments (bboxtune.envs.episodes.config.EnvConfig fields, YAML values; KEY=VALUE or "
+                        "KEY:VALUE, split at the first = or :), e.g. track_length=200")
     return p
 
 
@@ -233,7 +237,8 @@ def check_new_model(cfg: dict[str, Any], hp: Hyperparams, venv: VecEnv, where: s
     """Build (and drop) the run's model on ``venv``: catches settings SB3's constructor refuses."""
     try:
         norm = VecNormalize(venv, **hp.normalize) if hp.normalize else venv
-        algo_class(cfg["algo"])(hp.policy, norm, device="cpu", **constructor_kwargs(hp, venv.action_space.shape[0]))
+        n_actions = cast("tuple[int, ...]", venv.action_space.shape)[0]  # a Box
+        algo_class(cfg["algo"])(hp.policy, norm, device="cpu", **constructor_kwargs(hp, n_actions))
     except MODEL_ERRORS as err:
         raise RunError(f"{where}: the {cfg['algo']} model cannot be built ({' '.join(str(err).split())})") from None
 
@@ -262,7 +267,8 @@ def restore_replay_buffer(model: BaseAlgorithm, folder: Path, trust_pickle: bool
         raise RunError(f"{folder / PICKLED_REPLAY}: a pickle, which can run code when loaded; pass --trust-pickle only "
                        "if you trust where this run comes from")
     else:
-        model.load_replay_buffer(folder / PICKLED_REPLAY)  # the user vouched for this file
+        # an off-policy model: the callers check that it has a replay buffer; the user vouched for this file
+        cast("OffPolicyAlgorithm", model).load_replay_buffer(folder / PICKLED_REPLAY)
 
 
 def build(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Checkpoint | None, target: int,
@@ -278,8 +284,9 @@ def build(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Check
     if checkpoint is None:
         if hp.normalize:
             venv = VecNormalize(venv, **hp.normalize)
+        n_actions = cast("tuple[int, ...]", venv.action_space.shape)[0]  # a Box
         model = algo_class(cfg["algo"])(hp.policy, venv, seed=int(cfg["seed"]), device="cpu", verbose=0, tensorboard_log=tb,
-                                        **constructor_kwargs(hp, venv.action_space.shape[0]))
+                                        **constructor_kwargs(hp, n_actions))
     else:
         venv = load_normalizer(checkpoint.folder, venv, training=True, trust_pickle=trust_pickle) or venv
         model = load_model(checkpoint.folder / "model.zip", cfg, venv, tensorboard_log=tb)
@@ -392,7 +399,8 @@ def train(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Check
     episode_log.write_csv(run_dir / "train_log.csv")
     evals = np.array([np.mean(r) for r in evaluation.evaluations_results])
     write_text_atomic(run_dir / "eval_curve.csv", "timestep,mean_reward,std_reward\n" + "".join(
-        f"{t},{m:.6g},{np.std(r):.6g}\n" for t, m, r in zip(evaluation.evaluations_timesteps, evals, evaluation.evaluations_results, strict=False)))
+        f"{t},{m:.6g},{np.std(r):.6g}\n"
+        for t, m, r in zip(evaluation.evaluations_timesteps, evals, evaluation.evaluations_results, strict=False)))
     learning_curve(run_dir / "learning_curve.png", episode_log.timesteps, episode_log.rewards,
                    evaluation.evaluations_timesteps, evaluation.evaluations_results,
                    title=f"{cfg['algo']} · {cfg['env_id']} · {cfg['env_kwargs']['backend']} · seed {cfg['seed']}")

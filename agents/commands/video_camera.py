@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -84,7 +85,7 @@ def compare(seed: int, args: argparse.Namespace, ranges: VideoRanges) -> dict:
     source = VideoSource(EnvConfig(track_length=args.frames), VideoSettings(detector=args.detector))
     ep = source.episode({"truth": video.boxes, "y": y_xywh, "tau": np.float64(video.tau)}, meta={"seed": seed})
     model = filters.constant_velocity(ep.tau, ndim=4)
-    out = {"seed": seed, "camera_motion": video.scenario.camera_motion, "rmse": {}, "tracks": {}}
+    out: dict[str, Any] = {"seed": seed, "camera_motion": video.scenario.camera_motion, "rmse": {}, "tracks": {}}
     for k in args.smoothing:
         p = {"sigma_w": ep.nominal.sigma_w, "sigma_v": k * ep.nominal.sigma_v}
         ukf8 = {**p, "sigma_c": args.sigma_c, "sigma_u": args.sigma_u}
@@ -111,11 +112,12 @@ def main(argv: list[str] | None = None) -> int:
     out: Path = args.out
     write_csv(out / "results.csv", ("seed", "sigma_v_factor", "method", "centre_rmse"), rows)
     rng = np.random.default_rng(args.seed)
-    summary = {"args": {**vars(args), "out": str(out)}, "shift_error_px_mean": float(np.mean([r["shift_error_px"] for r in results])),
-               "by_smoothing": {}}
+    summary: dict[str, Any] = {"args": {**vars(args), "out": str(out)},
+                               "shift_error_px_mean": float(np.mean([r["shift_error_px"] for r in results])),
+                               "by_smoothing": {}}
     for k in args.smoothing:
         rm = {m: np.array([r["rmse"][k][m] for r in results]) for m in METHODS}
-        entry = {f"{m}_mean": float(v.mean()) for m, v in rm.items()}
+        entry: dict[str, Any] = {f"{m}_mean": float(v.mean()) for m, v in rm.items()}
         for comp, base in (("kf+input", "kf"), ("ukf8", "ukf")):
             ratio = np.log(rm[comp] / rm[base])
             entry[f"{comp}_vs_{base}_log_ratio"] = float(ratio.mean())

@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
                 tuner, train_auc = grid_tune(train, backend, points=args.grid)
                 tuned_files[f"tuned/{detector}-{backend}.json"] = json_text(tuner.document(
                     detector=detector, train_success_auc=train_auc, train_videos=[ep.meta["sequence"] for ep in train]))
-            auc = {m: [] for m in METHODS}
+            auc: dict[str, list[float]] = {m: [] for m in METHODS}
             for ep, raw_scores in zip(test, raw, strict=False):
                 for method, params in (("rule", ep.nominal.as_params()), ("tuned", tuner.params(ep))):
                     est = run_positions(backend, ep.y, ep.tau, params)

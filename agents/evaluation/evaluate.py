@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -51,10 +51,17 @@ from bboxtune.envs.data.boxes import cxcywh_to_xywh
 from bboxtune.envs.episodes.actions import parameter_family
 from bboxtune.envs.episodes.scoring import detections, score_estimates
 
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.envs.episodes.episode import Episode
+    from bboxtune.envs.episodes.sources import OTBSource
+    from bboxtune.envs.track_env import TrackEnv
+    from bboxtune.envs.tune_env import FilterTuneEnv
+
 RAW = "raw"
 PEERS = ("bytetrack_kf", "sort_kf")  # the practitioners' box filters, stock settings, scored beside every tuner
 ADAPTIVE = "adaptive"
 ADAPTIVE_TRUTH = "n"
+DEFAULT_ADAPTIVE = SageHusaConfig()  # the adaptive KF's default settings (frozen: one shared instance)
 OTB_SOURCES = ("otb", "otb_tracker")  # sources whose test episodes are enumerated, not drawn
 TRUE_KEYS = ("psi", "sigma_w", "sigma_xi", "sigma_rel", "tau")  # the true scenario, for analysis (true_<key>)
 
@@ -105,7 +112,7 @@ def evaluation_episodes(env: gym.Env, split: str, *, episodes: int | None, seeds
     the sequences it has output for, ``.sequences_of``;
     ``seeds_per_sequence`` for "otb", ``episodes`` must be None); the others take ``episodes`` noise seeds of
     :func:`bboxtune.agents.splits.split_seeds` (``seeds_per_sequence`` must be None). ValueError naming the argument."""
-    base = env.unwrapped
+    base = cast("TrackEnv", env.unwrapped)
     source = base.config.source
     if source not in OTB_SOURCES:
         if episodes is None or seeds_per_sequence is not None:
@@ -114,7 +121,7 @@ def evaluation_episodes(env: gym.Env, split: str, *, episodes: int | None, seeds
     if episodes is not None:
         raise ValueError(f"source {source!r} enumerates its episodes (every sequence of the split"
                          f"{' × tracker' if source == 'otb_tracker' else ' × noise seeds'}): no episode count")
-    pool = base.source
+    pool = cast("OTBSource", base.source)  # an OTB source: source is one of OTB_SOURCES here
     if source == "otb":
         return otb_episodes(pool.sequences, (), split, seeds_per_sequence=seeds_per_sequence or 1, seed=seed)
     if seeds_per_sequence is not None:
@@ -128,7 +135,7 @@ def val_episodes(env: gym.Env, n: int, seeds_per_sequence: int = 1) -> list[Epis
     """Validation episodes of ``env`` (built with split "val") to choose a setting on: ``n`` drawn episodes for sim
     and video sources, every val sequence × ``seeds_per_sequence`` noise seeds for "otb" and every val sequence ×
     tracker for "otb_tracker"."""
-    source = env.unwrapped.config.source
+    source = cast("TrackEnv", env.unwrapped).config.source
     return evaluation_episodes(env, "val", episodes=None if source in OTB_SOURCES else n,
                                seeds_per_sequence=seeds_per_sequence if source == "otb" else None)
 
@@ -145,9 +152,9 @@ class Evaluation:
 
 
 def evaluate(env: gym.Env, policies: Sequence[Policy], episodes: Sequence[EpisodeSpec], *,
-             adaptive: SageHusaConfig | None = SageHusaConfig(), progress: bool = False) -> Evaluation:
+             adaptive: SageHusaConfig | None = DEFAULT_ADAPTIVE, progress: bool = False) -> Evaluation:
     """Score ``raw``, ``policies`` and the adaptive KF (unless ``adaptive`` is None) on ``episodes``."""
-    base = env.unwrapped
+    base = cast("FilterTuneEnv", env.unwrapped)
     backend, source = base.config.backend, base.config.source
     names = [RAW, *PEERS] + [p.name for p in policies] + ([ADAPTIVE] if adaptive is not None else [])
     if len(set(names)) != len(names) or "rule" not in names:
@@ -160,7 +167,7 @@ def evaluate(env: gym.Env, policies: Sequence[Policy], episodes: Sequence[Episod
     example: dict[str, Any] = {}
     for i, spec in enumerate(tqdm(episodes, desc="test episodes", disable=not progress)):
         obs, _ = env.reset(options=spec.options())
-        ep = base.episode
+        ep = cast("Episode", base.episode)  # set by the reset
         for p in policies:
             p.begin_episode()
         actions = np.stack([p.act(obs, env) for p in policies])

@@ -2,7 +2,7 @@
 
 Behind a strong tracker, smoothing has little to gain. On the held-out trackers' output the per-sequence oracle
 gains +0.004 success AUC, and a tuner's small misjudgements cost about as much. So a tuner that always smooths ends
-a little below the raw measurements (README, "Held-out trackers' output"). The gated tuner (``<model>_gated`` in
+a little below the raw measurements (docs/results-otb.md, "Held-out trackers' output"). The gated tuner (``<model>_gated`` in
 ``scripts/compare.py --gate``) uses the model's action only where it predicts that the action beats the raw
 measurements by more than a margin. Elsewhere it leaves the track alone: its estimate is the measurements
 themselves, scored exactly as ``raw`` (``Policy.leaves_alone``). Not a trust-the-measurement action: those follow
@@ -35,7 +35,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -51,6 +51,9 @@ from bboxtune.agents.splits import EpisodeSpec, train_seeds
 from bboxtune.agents.training.runs import make_env
 from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.scoring import reward_from, score_estimates
+
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.envs.tune_env import FilterTuneEnv
 
 GATED = "_gated"  # name suffix: ppo -> ppo_gated (ppo_s0 -> ppo_gated_s0)
 OPEN_SHARES = (0.1, 0.25, 0.5, 0.75, 0.9)  # shares of val episodes a quantile margin opens
@@ -142,13 +145,13 @@ def choose_margin(gated: GatedPolicy, env: gym.Env, episodes: Sequence[EpisodeSp
     """:func:`pick_margin` on the validation ``episodes`` of ``env`` (a val-split FilterTune-v0 env)."""
     if not episodes:
         raise ValueError("no validation episodes to choose the gate's margin on")
-    base = env.unwrapped
+    base = cast("FilterTuneEnv", env.unwrapped)
     predicted, gains = [], []
     for spec in episodes:
         obs = np.asarray(env.reset(options=spec.options())[0])
         predicted.append(float(gated.gate.gain.predict(obs[None])[0]))
         scores = base.score(gated.inner.predict(obs[None]))
-        gains.append(float(gain_over_raw(scores, base.episode, base.config.reward)[0]))
+        gains.append(float(gain_over_raw(scores, cast(Episode, base.episode), base.config.reward)[0]))  # after reset
     return pick_margin(np.array(predicted), np.array(gains))
 
 

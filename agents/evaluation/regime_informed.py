@@ -31,14 +31,18 @@ log σ_w (the first regime's, px/s²) and log τ (s).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
 
-from bboxtune.agents.evaluation.retune_eval import RetuneMethod
+from bboxtune.agents.evaluation.retune_eval import DEFAULT_SEARCH, RetuneMethod
 from bboxtune.agents.evaluation.window_regressor import WindowRegressorPolicy
 from bboxtune.agents.policies.baselines import GridSearch, RulePolicy
+
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.envs.episodes.episode import Episode
+    from bboxtune.envs.retune_env import FilterRetuneEnv
 
 WINDOW_REGIME_INFORMED, REGIME_ORACLE = "window_regime_informed", "regime_oracle"
 CHUNKS = 5  # windows of schedule features: the coming one and the 4 before it
@@ -86,7 +90,7 @@ class RegimeObservation(gym.ObservationWrapper):
 
     def __init__(self, env: gym.Env) -> None:
         super().__init__(env)
-        n = env.observation_space.shape[0] + len(REGIME_FEATURE_NAMES)
+        n = cast("tuple[int, ...]", env.observation_space.shape)[0] + len(REGIME_FEATURE_NAMES)  # a Box's shape
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (n,), np.float32)
 
     def observation(self, observation: np.ndarray) -> np.ndarray:
@@ -121,12 +125,12 @@ class RegimeOracle(RetuneMethod):
 
     name, truth_at_test = REGIME_ORACLE, "y (truth, per regime state)"
 
-    def __init__(self, search: GridSearch = GridSearch()) -> None:
+    def __init__(self, search: GridSearch = DEFAULT_SEARCH) -> None:
         self.search = search
 
     def play(self, env: gym.Env, obs: np.ndarray) -> list[dict[str, Any]]:
-        base = env.unwrapped
-        ep, start, W = base.episode, base.window_start, base.config.window
+        base = cast("FilterRetuneEnv", env.unwrapped)
+        ep, start, W = cast("Episode", base.episode), base.window_start, base.config.window  # episode: set by reset
         truth = ep.truth[start:]
         states = regime_states(ep.scenario, len(ep.y))[start:]
         bounds = [(lo, min(lo + W, len(states))) for lo in range(0, len(states), W)]
@@ -145,6 +149,9 @@ class RegimeOracle(RetuneMethod):
         best = {}
         for s in np.unique(window_state):
             frames = np.concatenate([np.arange(lo, hi) for (lo, hi), ws in zip(bounds, window_state, strict=False) if ws == s])
-            best[s] = self.search.search(lambda a, f=frames: {"reward": -squared(a)[:, f].sum(axis=1)},
-                                         base.action_map.dim, extra=rule[None])[0]
+
+            def reward(a: np.ndarray, f: np.ndarray = frames) -> dict[str, np.ndarray]:
+                return {"reward": -squared(a)[:, f].sum(axis=1)}
+
+            best[s] = self.search.search(reward, base.action_map.dim, extra=rule[None])[0]
         return [env.step(best[s])[4] for s in window_state]

@@ -36,7 +36,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -49,9 +49,15 @@ from bboxtune.agents.policies.imm import IMMConfig, imm_positions
 from bboxtune.agents.splits import EpisodeSpec
 from bboxtune.envs.episodes.scoring import score_estimates
 
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.envs.episodes.episode import Episode
+    from bboxtune.envs.retune_env import FilterRetuneEnv
+
 ONESHOT_ORACLE, WINDOW_ORACLE, ONESHOT_LEARNED = "oneshot_oracle", "window_oracle", "oneshot_learned"
 ONESHOT_LEARNED_ONLINE = "oneshot_learned_online"
 IMM = "imm"
+# the default settings (frozen dataclasses: one shared instance each, as a call in the default would be)
+DEFAULT_SEARCH, DEFAULT_ADAPTIVE, DEFAULT_IMM = GridSearch(), SageHusaConfig(), IMMConfig()
 
 
 class RetuneMethod(ABC):
@@ -103,12 +109,13 @@ class OneShotOracle(OneShot):
 
     name, truth_at_test = ONESHOT_ORACLE, "y (truth)"
 
-    def __init__(self, search: GridSearch = GridSearch()) -> None:
+    def __init__(self, search: GridSearch = DEFAULT_SEARCH) -> None:
         self.oracle = OraclePolicy(search, anchors=(RulePolicy(),))
 
     def choose(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
-        base = env.unwrapped
-        return self.oracle.episode_search(base.score_rest, base.episode, base.action_map, base.config.backend)
+        base = cast("FilterRetuneEnv", env.unwrapped)
+        return self.oracle.episode_search(base.score_rest, cast("Episode", base.episode), base.action_map,
+                                          base.config.backend)  # base.episode: set by the env's reset
 
 
 class OneShotLearned(OneShot):
@@ -125,18 +132,18 @@ class OneShotLearned(OneShot):
         self.name = ONESHOT_LEARNED_ONLINE if online else ONESHOT_LEARNED
 
     def choose(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
-        base = env.unwrapped
+        base = cast("FilterRetuneEnv", env.unwrapped)
         if self.online:  # the FilterTune-v0 features of the frames seen so far; no whole-track episode needed
             tune_obs = base.features_so_far()
         else:
-            ep = base.episode
+            ep = cast("Episode", base.episode)  # set by the env's reset
             options = {k: ep.meta[k] for k in ("noise_seed", "sequence", "tracker") if ep.meta.get(k) not in (None, "")}
             tune_obs, _ = self.tune_env.reset(options=options)
         self.policy.begin_episode()
         return self.policy.act(tune_obs, self.tune_env)
 
 
-def window_oracle(search: GridSearch = GridSearch()) -> Sequential:
+def window_oracle(search: GridSearch = DEFAULT_SEARCH) -> Sequential:
     """Greedy per-window search with the truth (the filter state carried)."""
     return Sequential(OraclePolicy(search, anchors=(RulePolicy(),)), name=WINDOW_ORACLE, truth_at_test="y (truth, per window)")
 
@@ -151,11 +158,11 @@ class RetuneEvaluation:
 
 
 def evaluate_retune(env: gym.Env, methods: Sequence[RetuneMethod], episodes: Sequence[EpisodeSpec], *,
-                    adaptive: SageHusaConfig | None = SageHusaConfig(), imm: IMMConfig | None = IMMConfig(),
+                    adaptive: SageHusaConfig | None = DEFAULT_ADAPTIVE, imm: IMMConfig | None = DEFAULT_IMM,
                     progress: bool = False) -> RetuneEvaluation:
     """Play every method on every episode and score the frames after the warm-up window (``adaptive`` / ``imm``
     None: leave that estimator out)."""
-    base = env.unwrapped
+    base = cast("FilterRetuneEnv", env.unwrapped)
     names = [RAW, *(m.name for m in methods), *([ADAPTIVE] if adaptive is not None else []), *([IMM] if imm is not None else [])]
     if len(set(names)) != len(names) or "rule" not in names:
         raise ValueError(f"method names {names} must be distinct and include 'rule'")
@@ -170,7 +177,7 @@ def evaluate_retune(env: gym.Env, methods: Sequence[RetuneMethod], episodes: Seq
             infos = method.play(env, obs)
             estimates.append(base.estimates)
             schedules[method.name] = [(info["window"], info["params"]) for info in infos]
-        ep = base.episode
+        ep = cast("Episode", base.episode)  # set by the resets above
         warm = min(base.config.window, len(ep.y))  # the first frame after the warm-up window
         est = [ep.y, *estimates]
         if adaptive is not None:

@@ -86,7 +86,8 @@ def seeds_section(rows: Sequence[dict[str, Any]], groups: dict[str, list[str]], 
     mean of the log-ratio vs the rule and of the RMSE, with stratified bootstrap CIs; ``reference`` methods
     (one run each: raw, rule, oracle, …) are shown alongside as one-run rows."""
     head = ["## Across training seeds (IQM and mean, stratified bootstrap)", "",
-            f"rliable's estimator (`bboxtune.agents.evaluation.seeds_report`): tasks = test {'sequences' if any(r.get('sequence') for r in rows) else 'episodes'}; "
+            "rliable's estimator (`bboxtune.agents.evaluation.seeds_report`): tasks = test "
+            f"{'sequences' if any(r.get('sequence') for r in rows) else 'episodes'}; "
             f"each of {n_boot} resamples draws, per task, the runs (seeds) with replacement; 95 % percentile CIs. "
             "Reference methods are one run each (their CI is 0 wide).", "",
             "| method | runs | log-ratio IQM | log-ratio mean | RMSE IQM (px) | RMSE mean (px) |", "|---|---|---|---|---|---|"]

@@ -19,6 +19,7 @@ has the same size m, else a list of n_boot index arrays; :func:`ci` takes either
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Sequence
+from typing import cast
 
 import numpy as np
 from scipy.stats import trim_mean
@@ -41,7 +42,7 @@ def win_rate(rmse: np.ndarray, reference: np.ndarray) -> float:
 STATS: dict[str, Stat] = {
     "mean": lambda x: np.mean(x, axis=-1),
     "median": lambda x: np.median(x, axis=-1),
-    "iqm": lambda x: iqm(x, axis=-1),
+    "iqm": lambda x: cast(np.ndarray, iqm(x, axis=-1)),  # iqm's float case is a 1-D x only
 }
 
 

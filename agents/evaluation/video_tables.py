@@ -16,7 +16,7 @@ import io
 import json
 import os
 import shutil
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -59,8 +59,17 @@ def folder_in_use(out: Path) -> str | None:
     return f"{out} exists and is not a folder" if os.path.lexists(out) else None
 
 
-def publish_folder(out: Path, files: dict[str, str]) -> None:
-    """Write ``files`` (relative path → text) into a temporary sibling of ``out``, then rename it to ``out``.
+def write_content(path: Path, content: str | bytes) -> None:
+    """``content`` into the file ``path``: text as UTF-8, bytes as they are."""
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(content, encoding="utf-8")
+
+
+def publish_folder(out: Path, files: Mapping[str, str | bytes]) -> None:
+    """Write ``files`` (relative path → text, or bytes written as they are) into a temporary sibling of ``out``, then
+    rename it to ``out``.
 
     ``out`` must be absent or an empty folder (ValueError naming it otherwise, with nothing written); its
     parent folders are created."""
@@ -68,10 +77,10 @@ def publish_folder(out: Path, files: dict[str, str]) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
     try:
-        for name, text in files.items():
+        for name, content in files.items():
             path = tmp / name
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text, encoding="utf-8")
+            write_content(path, content)
         try:
             os.rename(tmp, out)  # atomic; replaces only an empty folder
         except OSError as err:

@@ -49,7 +49,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import product
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -58,6 +58,9 @@ from tqdm import tqdm
 from bboxtune.agents.evaluation.retune_eval import OneShot, Sequential, evaluate_retune
 from bboxtune.agents.policies.baselines import GridSearch, ObsPolicy, Policy, RulePolicy, mlp_regressor
 from bboxtune.agents.splits import EpisodeSpec
+
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.envs.retune_env import FilterRetuneEnv
 
 WINDOW_AMORTISED, WINDOW_ANCHORED, WINDOW_RESIDUAL = "window_amortised", "window_anchored", "window_residual"
 
@@ -73,7 +76,7 @@ class WindowRegressorSettings:
     margins: tuple[float, ...] = (0.0, 0.05, 0.1, 0.2, 0.3, np.inf)  # window_anchored: the predicted log-RMSE gains a
     # switch away from the anchor must exceed, one chosen on validation episodes (inf: never switch)
     residual_step: float = 0.25  # window_residual: the largest offset from the anchor per action dimension (action units)
-    residual_points: int = 5  # window_residual: offsets per dimension, evenly spaced in [-step, step] (the zero one is the anchor)
+    residual_points: int = 5  # window_residual: offsets per dimension, evenly spaced in [-step, step] (0: the anchor)
 
 
 def candidate_grid(d: int, n: int) -> np.ndarray:
@@ -97,7 +100,7 @@ def anchor_candidates(anchor_action: np.ndarray, offsets: np.ndarray) -> np.ndar
 def window_labels(env: gym.Env, candidates: np.ndarray) -> np.ndarray | None:
     """log RMSE (A,) of every candidate on the env's current window, centred on its mean; None when a score is
     not finite (a window without ground truth)."""
-    rmse = env.unwrapped.score(candidates)["rmse"]
+    rmse = cast("FilterRetuneEnv", env.unwrapped).score(candidates)["rmse"]
     if not np.all(np.isfinite(rmse)) or np.any(rmse <= 0):
         return None
     log_rmse = np.log(rmse)
@@ -126,7 +129,7 @@ def collect(env: gym.Env, noise_seeds: np.ndarray, candidates: np.ndarray, explo
                 obs_rows.append(np.concatenate([obs, anchor_action]) if around_anchor else obs)
                 labels.append(y)
             explore_now = y is None or rng.random() < explore
-            action = actions[rng.integers(len(actions))] if explore_now else actions[np.argmin(y)]
+            action = actions[rng.integers(len(actions))] if explore_now else actions[np.argmin(cast(np.ndarray, y))]
             obs, _, done, _, _ = env.step(action)
     if not labels:
         raise ValueError(f"{WINDOW_AMORTISED}: no window with finite scores in {len(noise_seeds)} training episodes")
@@ -151,7 +154,7 @@ def fit_regressor(env: gym.Env, noise_seeds: np.ndarray, *, settings: WindowRegr
         raise ValueError(f"residual_step={settings.residual_step}; allowed: 0 < residual_step <= 2 (action units)")
     if settings.residual_points < 2:
         raise ValueError(f"residual_points={settings.residual_points}; allowed: >= 2")
-    d = env.unwrapped.action_map.dim
+    d = cast("FilterRetuneEnv", env.unwrapped).action_map.dim
     candidates = (residual_offsets(d, settings.residual_step, settings.residual_points) if residual
                   else candidate_grid(d, settings.candidates))
     obs, labels = collect(env, noise_seeds, candidates, settings.explore, np.random.default_rng((seed, 7)), progress,

@@ -8,7 +8,8 @@ read the episode through ``env.unwrapped`` (``episode``, ``action_map``, ``score
 | name              | what it sets                                                     | ground truth at test |
 |-------------------|------------------------------------------------------------------|----------------------|
 | ``rule``          | the env's nominal parameters (N = N_opt(σ_v,nom, σ_w,nom, τ), ψ = nominal ψ) | no     |
-| ``rule_est_sigma``| the rule with σ̂_v, σ̂_w estimated from the measurements (``bboxtune.envs.episodes.features.estimate_sigmas``) | no |
+| ``rule_est_sigma``| the rule with σ̂_v, σ̂_w estimated from the measurements          | no                   |
+|                   | (``bboxtune.envs.episodes.features.estimate_sigmas``)            |                      |
 | ``rule_true_sigma``| the rule with the scenario's true ψ, σ_w, σ (sim only; see the class) | true scenario |
 | ``oracle``        | grid search + refinement on the env's reward with this episode's truth (the ceiling) | yes |
 | ``oracle_auc`` / ``oracle_rmse`` | the same search maximising success AUC / minimising RMSE (the other metric's ceiling) | yes |
@@ -26,7 +27,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import product
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -41,6 +42,10 @@ from bboxtune.envs.episodes.actions import SIGMA_PARAMETERS, ActionMap, Nominal,
 from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.features import estimate_sigmas
 from bboxtune.filters.horizon import rule_horizon
+
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.envs.track_env import TrackEnv
+    from bboxtune.envs.tune_env import FilterTuneEnv
 
 CMN_BACKENDS = frozenset({"kf_cmn", "ufir_cmn"})  # back ends whose sigma_v is σ_ξ of the CMN
 
@@ -61,7 +66,8 @@ class Policy(ABC):
     def act(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
         """Action (d,) for the episode ``env`` was just reset to; ``obs`` its observation."""
 
-    def begin_episode(self) -> None:
+    # an optional hook, not abstract: the policies without a memory (most of them) keep this no-op
+    def begin_episode(self) -> None:  # noqa: B027
         """Called before an episode's first ``act`` (a policy with a memory forgets the last episode here)."""
 
     def leaves_alone(self, obs: np.ndarray) -> bool:
@@ -89,8 +95,8 @@ class EpisodePolicy(Policy):
         """Action (d,) for episode ``ep`` under the action map ``amap`` of an env with back end ``backend``."""
 
     def act(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
-        base = env.unwrapped
-        return self.episode_action(base.episode, base.action_map, base.config.backend)
+        base = cast("TrackEnv", env.unwrapped)
+        return self.episode_action(cast(Episode, base.episode), base.action_map, base.config.backend)  # after reset
 
 
 def _clipped_action(amap: ActionMap, nominal: Nominal, params: dict[str, float]) -> np.ndarray:
@@ -133,7 +139,7 @@ class RuleEstimatedSigmaPolicy(EpisodePolicy):
     name = "rule_est_sigma"
 
     def episode_action(self, ep: Episode, amap: ActionMap, backend: str) -> np.ndarray:
-        sigma_v, sigma_w = estimate_sigmas(ep.y, ep.tau)
+        sigma_v, sigma_w = cast("tuple[float, float]", estimate_sigmas(ep.y, ep.tau))  # one track: floats
         return _rule_action(ep, amap, ep.nominal.psi, sigma_w, sigma_v)
 
 
@@ -224,8 +230,8 @@ class OraclePolicy(Policy):
         return lambda actions: {"reward": score(actions)[self.objective]}
 
     def act(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
-        base = env.unwrapped
-        return self.episode_search(base.score, base.episode, base.action_map, base.config.backend)
+        base = cast("FilterTuneEnv", env.unwrapped)
+        return self.episode_search(base.score, cast(Episode, base.episode), base.action_map, base.config.backend)
 
     def episode_search(self, score: ScoreFn, ep: Episode, amap: ActionMap, backend: str) -> np.ndarray:
         """The oracle's action (d,) for episode ``ep`` scored by ``score``."""

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -62,7 +63,7 @@ def write_gate(path: Path | str, gate: Gate, about: str) -> None:
     write_text_atomic(path, json.dumps(data, indent=1) + "\n")
 
 
-def read_gate(path: Path | str, n_features: int) -> Gate:
+def read_gate(path: str | os.PathLike[str], n_features: int) -> Gate:
     """The gate in the JSON file ``path`` (read as :func:`bboxtune.agents.readers.read_json` reads: bounded, strict)
     for a tuner of
     ``n_features`` observation features; ValueError naming the file and the field that is missing or malformed."""

@@ -127,7 +127,7 @@ def save_figure(fig: plt.Figure, path: Path) -> None:
     plt.close(fig)
 
 
-def param_sweep(name: str, model: filters.StateSpaceModel, y: np.ndarray, param: str, values: Sequence[float],
+def param_sweep(name: str, model: filters.StateSpaceModel, y: np.ndarray, param: str, values: Sequence[float] | np.ndarray,
                 reduce: Callable[[np.ndarray], object], chunk_tracks: int = 2400, **fixed: object) -> np.ndarray:
     """Run back end ``name`` with ``param`` at every one of ``values`` on all tracks ``y`` (B, T, M); return
     ``reduce(states (B, T, K))`` per value, stacked (leading axis over ``values``). The values run as per-track

@@ -16,6 +16,7 @@ over frames 100 … T−1 (``EVAL_FROM``, after the longest swept horizon; our r
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -58,15 +59,18 @@ def run_table1(settings: Settings) -> Table1Result:
         sc = PRESETS[preset]
         track = simulate(sc, rng, n_tracks=settings.mc)
         model = filters.constant_velocity(sc.tau, ndim=sc.ndim)
-        noise = {"sigma_w": sc.sigma_w, "sigma_v": sc.sigma_xi}  # exact statistics, as the paper's q, r
+        noise: dict[str, Any] = {"sigma_w": sc.sigma_w, "sigma_v": sc.sigma_xi}  # exact statistics, as the paper's q, r
         horizon = filters.rule_horizon(sc.sigma_xi, sc.sigma_w, sc.tau, 2)  # K = 2 per coordinate
         states = {"kf": filters.make("kf", model, **noise).run(track.y),
                   "fir": filters.make("fir", model, horizon=horizon, **noise).run(track.y)}
         for predicted in (True, False):
             for name, x in states.items():
                 frame_rmse[name, delta, predicted] = framewise_rmse(x, track.truth, sc.tau, predicted)
-        swept = param_sweep("fir", model, track.y, "horizon", horizons, lambda x: [
-            framewise_rmse(x, track.truth, sc.tau, p)[EVAL_FROM:].mean() for p in (True, False)], **noise)
+
+        def both(x: np.ndarray, truth: np.ndarray = track.truth, tau: float = sc.tau) -> list[float]:
+            return [framewise_rmse(x, truth, tau, p)[EVAL_FROM:].mean() for p in (True, False)]
+
+        swept = param_sweep("fir", model, track.y, "horizon", horizons, both, **noise)
         sweep[delta, True], sweep[delta, False] = swept[:, 0], swept[:, 1]
     return Table1Result(horizon=int(horizon), frame_rmse=frame_rmse, sweep=sweep, horizons=horizons)
 

@@ -16,6 +16,7 @@ minimises the error against the ground truth.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -100,7 +101,7 @@ def run_case(case: OTBCase, dataset: OTBDataset, settings: Settings, experiment:
     y = truth + gauss_markov(case.psi, np.full(2, case.sigma_xi), (settings.mc, len(truth), 2), rng)  # (2), (3)
     model = filters.constant_velocity(case.tau, ndim=2)
     full_truth = np.broadcast_to(truth, y.shape)
-    noise = {"sigma_w": case.sigma_w, "sigma_v": case.sigma_xi}
+    noise: dict[str, Any] = {"sigma_w": case.sigma_w, "sigma_v": case.sigma_xi}  # filter parameters, passed on
     extras = {"kf": noise, "kf_cmn": {**noise, "psi": case.psi}, "ufir": {}, "ufir_cmn": {"psi": case.psi}}
 
     def run(name: str, **params: object) -> np.ndarray:
@@ -118,8 +119,11 @@ def run_case(case: OTBCase, dataset: OTBDataset, settings: Settings, experiment:
         sweep_rmse[name] = param_sweep(name, model, y, "sigma_w", settings.otb_sigma_w, versus(full_truth),
                                        **{k: v for k, v in extras[name].items() if k != "sigma_w"})
     for name, ref in REFERENCE.items():
-        swept = param_sweep(name, model, y, "horizon", settings.otb_horizons,
-                            lambda x, r=estimates[ref]: [versus(full_truth)(x), versus(r)(x)], **extras[name])
+
+        def both(x: np.ndarray, r: np.ndarray = estimates[ref]) -> list[np.ndarray]:
+            return [versus(full_truth)(x), versus(r)(x)]
+
+        swept = param_sweep(name, model, y, "horizon", settings.otb_horizons, both, **extras[name])
         sweep_rmse[name], sweep_diff[name] = swept[:, 0], swept[:, 1]
     grids = {"kf": np.asarray(settings.otb_sigma_w), "ufir": np.asarray(settings.otb_horizons)}
     paper_n = dict(case.horizons)
@@ -235,7 +239,7 @@ def _car4_claims(res: OTBResult) -> str:
 
 def _suv_claims(res: OTBResult) -> str:
     e = {k: res.rmse(k) for k in ("kf", "ofir", "ufir", "oufir")}
-    order = " < ".join(sorted(e, key=e.get))
+    order = " < ".join(sorted(e, key=lambda k: e[k]))
     return md_table(["paper's claim ([PaleRamon-BBox] §9.2)", "ours", "verdict"], [
         ["RMSE order OUFIR < UFIR < OFIR ≈ KF (2316.90 < 2361.90 < 4962.39 ≈ 4963.56)", order,
          verdict(max(e["oufir"], e["ufir"]) < min(e["ofir"], e["kf"]), "counted if both unbiased FIRs beat "

@@ -107,8 +107,11 @@ def run_nopt(settings: Settings) -> NoptResult:
         track = simulate(replace(SCENARIO, psi=psi), rng, n_tracks=settings.mc)
         grid = np.union1d(settings.nopt_horizons, [PAPER_NOPT[0.0], int(paper_horizon(psi))])
         horizons.append(grid)
-        rmse.append(param_sweep("ufir_cmn", model, track.y, "horizon", grid,
-                                  lambda est: per_psi_rmse(est, track.truth, 1)[0], psi=psi))
+
+        def first_rmse(est: np.ndarray, truth: np.ndarray = track.truth) -> float:
+            return per_psi_rmse(est, truth, 1)[0]
+
+        rmse.append(param_sweep("ufir_cmn", model, track.y, "horizon", grid, first_rmse, psi=psi))
         kf = filters.make("kf_cmn", model, psi=psi, sigma_w=SCENARIO.sigma_w, sigma_v=SCENARIO.sigma_xi).run(track.y)
         kf_cmn.append(per_psi_rmse(kf, track.truth, 1)[0])
     return NoptResult(psi=np.asarray(settings.nopt_psi), horizons=horizons, rmse=rmse, kf_cmn=np.array(kf_cmn))

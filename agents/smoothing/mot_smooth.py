@@ -37,11 +37,12 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from bboxtune.agents.smoothing.stock_filter import StockFilter
-from bboxtune.agents.smoothing.tuner import MIN_FRAMES, MIN_MEASURED, TAU_RANGE, Tuner
+from bboxtune.agents.smoothing.stock_filter import TrackSmoother
+from bboxtune.agents.smoothing.tuner import MIN_FRAMES, MIN_MEASURED, TAU_RANGE
 from bboxtune.envs.data import textfile
 from bboxtune.envs.data.mot import match_identities, resolve_root
 from bboxtune.envs.data.mot_io import (
@@ -264,7 +265,7 @@ class Smoothed:
         return self.boxes is None
 
 
-def smooth_track(tuner: Tuner | StockFilter, track: IdentityTrack, tau: float) -> Smoothed:
+def smooth_track(tuner: TrackSmoother[Any], track: IdentityTrack, tau: float) -> Smoothed:
     """``track`` smoothed with the parameters ``tuner`` chooses from its boxes alone (module docstring)."""
     if track.too_short:
         return Smoothed(track, None, None)

@@ -19,7 +19,7 @@ missing frames are predicted.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -31,6 +31,37 @@ from bboxtune.envs.episodes.config import EnvConfig
 from bboxtune.envs.episodes.scoring import detections
 
 STOCK_FILTERS = filters.PEER_NAMES  # ("bytetrack_kf", "sort_kf")
+
+Seen = TypeVar("Seen")
+
+
+class TrackSmoother(Protocol[Seen]):
+    """What ``smooth.py`` and :mod:`bboxtune.agents.smoothing.mot_smooth` ask of a tuner: a
+    :class:`~bboxtune.agents.smoothing.tuner.Tuner` (``Seen`` = its ``Observation``) or a :class:`StockFilter`
+    (``Seen`` = the checked track)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def backend(self) -> str: ...
+
+    @property
+    def parameters(self) -> tuple[str, ...]: ...
+
+    @property
+    def config(self) -> EnvConfig: ...
+
+    @property
+    def gate(self) -> Any: ...
+
+    def observe(self, boxes: ArrayLike, tau: Any) -> Seen: ...
+
+    def params(self, seen: Seen) -> dict[str, float | int]: ...
+
+    def leaves_alone(self, seen: Seen) -> bool: ...
+
+    def smooth(self, boxes: ArrayLike, tau: Any, params: dict[str, float | int] | None = None) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)

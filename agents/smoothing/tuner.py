@@ -45,7 +45,7 @@ import os
 from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -70,7 +70,7 @@ if TYPE_CHECKING:
     from bboxtune.agents.training.runs import SB3Policy
 
 ONE_STEP_ENV = "bboxtune/FilterTune-v0"
-DEFAULT_PRETRAINED = "otb_tracker_kf_cmn"  # chosen on the val split (README, smoothing section)
+DEFAULT_PRETRAINED = "otb_tracker_kf_cmn"  # chosen on the val split (docs/smoothing.md)
 TAU_RANGE = (1e-3, 1.0)  # s, the envs' range of frame intervals
 MIN_FRAMES = 8  # the envs' shortest track
 MIN_MEASURED = 2  # a box scale and one difference
@@ -122,7 +122,7 @@ def rule_nominal(cfg: EnvConfig, y: np.ndarray, tau: float) -> Nominal:
         rel_v, rel_w = VideoSettings.from_config(cfg).nominal_rel
     else:
         rel_v, rel_w = cfg.otb_sigma_v_rel, cfg.otb_sigma_w_rel
-    scale = box_scale(y)
+    scale = cast(float, box_scale(y))  # one track: a float
     return source_nominal(cfg, rel_v * scale, rel_w * scale, tau)
 
 
@@ -176,7 +176,7 @@ class Tuner:
             raise RunError(f"{run_dir / CONFIG}: env_id {cfg['env_id']}; a tuner chooses one parameter set per track "
                            f"({ONE_STEP_ENV})")
         venv = spaces_venv(cfg, run_dir / CONFIG)
-        env = venv.envs[0].unwrapped
+        env = cast(TrackEnv, venv.envs[0].unwrapped)
         config = EnvConfig.from_kwargs(**cfg["env_kwargs"])  # constructing a config reads no data
         policy = SB3Policy.load(run_dir, "final", venv=venv)
         tuner = cls(name=name or str(run_dir), policy=policy, config=config, action_map=env.action_map)
@@ -184,7 +184,8 @@ class Tuner:
 
     def with_gate(self, path: str | os.PathLike) -> Tuner:
         """This tuner gated by the gate file ``path`` (:mod:`bboxtune.agents.policies.gate_file`; ValueError naming the file)."""
-        return replace(self, gate=read_gate(path, self.policy.model.observation_space.shape[0]))
+        n_features = cast("tuple[int, ...]", self.policy.model.observation_space.shape)[0]
+        return replace(self, gate=read_gate(path, n_features))
 
     def leaves_alone(self, seen: Observation) -> bool:
         """Whether the gate (if any) leaves this track as measured."""
@@ -202,8 +203,11 @@ class Tuner:
     def observe(self, boxes: ArrayLike, tau: Any) -> Observation:
         """The observation of the track ``boxes`` (T, 4) xywh at frame interval ``tau`` (s), as the env of the
         tuner's config computes it at reset (module docstring)."""
-        tau = check_tau(tau)
-        y = xywh_to_cxcywh(check_boxes(boxes))
+        return self._observe(check_boxes(boxes), check_tau(tau))
+
+    def _observe(self, xywh: np.ndarray, tau: float) -> Observation:
+        """:meth:`observe` of a track already checked (:func:`check_boxes`, :func:`check_tau`)."""
+        y = xywh_to_cxcywh(xywh)
         nominal = rule_nominal(self.config, y, tau)
         track = Episode(truth=np.full_like(y, np.nan), y=y, tau=tau, nominal=nominal)  # no ground truth: none is used
         rule = run_tracks(self.backend, [y], [tau], TrackEnv.rule_params(track))[0]
@@ -228,22 +232,24 @@ class Tuner:
         """The track filtered by the back end with ``params`` (default: :meth:`tune`'s), (T, 4) xywh px; NaN rows
         where there is no estimate (before the first measured frame). Without ``params``, a track the gate leaves
         alone is returned as given."""
+        xywh, tau = check_boxes(boxes), check_tau(tau)  # checked and converted once, for every path below
         if params is None:
-            seen = self.observe(boxes, tau)
+            seen = self._observe(xywh, tau)
             if self.leaves_alone(seen):
-                return check_boxes(boxes).copy()
-            params = self.params(seen)
-        if set(params) != set(ACCEPTS[self.backend]):
-            raise ValueError(f"params has keys {sorted(params)}; back end {self.backend} takes {ACCEPTS[self.backend]}")
-        y = xywh_to_cxcywh(check_boxes(boxes))
-        est = run_positions(self.backend, y, check_tau(tau), {k: np.array([v]) for k, v in params.items()})[0]
+                return xywh.copy()
+            params, y = self.params(seen), seen.y
+        else:
+            if set(params) != set(ACCEPTS[self.backend]):
+                raise ValueError(f"params has keys {sorted(params)}; back end {self.backend} takes "
+                                 f"{ACCEPTS[self.backend]}")
+            y = xywh_to_cxcywh(xywh)
+        est = run_positions(self.backend, y, tau, {k: np.array([v]) for k, v in params.items()})[0]
         return cxcywh_to_xywh(est)
 
 
 def load_pretrained(name: str) -> Tuner:
     """The pretrained tuner ``name`` (:mod:`bboxtune.agents.smoothing.pretrained`; ValueError listing the available
-    ones or naming a
-    missing file), cached per process and folder (the files are package data)."""
+    ones or naming a missing file), cached per process and folder (the files are package data)."""
     return _load_folder(name, pretrained.folder(name))
 
 

@@ -3,7 +3,7 @@
 ``agents/hyperparams/<algo>.yml`` maps env ids to complete settings. As in the zoo, an env id's own entry is used
 as is and the ``default:`` entry serves any env id without one; files share settings through a YAML anchor and
 ``<<:`` merge keys, which ``yaml.safe_load`` resolves. The zoo loads the shipped files unchanged
-(``python -m rl_zoo3.train --algo ppo --env bboxtune/FilterTune-v0 --gym-packages envs -conf
+(``python -m rl_zoo3.train --algo ppo --env bboxtune/FilterTune-v0 --gym-packages bboxtune -conf
 agents/hyperparams/ppo.yml``, tested per file). The one setting only this loader reads, ``vec_env``, is a top-level
 key: the zoo looks up env ids only (its option is ``--vec-env``), while inside an entry it would pass the key to the
 algorithm's constructor. A file entry the zoo would reject is refused here too: it must hold ``n_timesteps`` and
@@ -14,9 +14,10 @@ Nothing is ``eval``'d: the string forms of ``policy_kwargs`` and ``normalize`` t
 |----------------------|--------------------------------------------------|----------------------------------------------|
 | ``n_timesteps``      | int                                              | default ``--timesteps`` of ``train.py``      |
 | ``n_envs``           | int                                              | default ``--n-envs``                         |
-| ``vec_env``          | ``batched``, ``subproc`` or ``dummy`` (top level | ``bboxtune.agents.training.batched.TuneVecEnv`` (one process,  |
-|                      | or override); a file's ``batched`` means         | all envs in one batch; FilterTune-v0 only) / |
-|                      | ``subproc`` for env ids without a batched form   | SubprocVecEnv / DummyVecEnv                  |
+| ``vec_env``          | ``batched``, ``subproc`` or ``dummy`` (top level | ``bboxtune.agents.training.batched.TuneVecEnv`` |
+|                      | or override); a file's ``batched`` means         | (one process, all envs in one batch;         |
+|                      | ``subproc`` for env ids without a batched form   | FilterTune-v0 only) / SubprocVecEnv /        |
+|                      |                                                  | DummyVecEnv                                  |
 | ``normalize``        | bool or mapping of VecNormalize kwargs           | ``VecNormalize(**kwargs)`` (true: obs only)  |
 | ``policy``           | str (``MlpPolicy``)                              | policy                                       |
 | ``learning_rate``, ``clip_range`` | float or ``lin_<float>``            | constant, or linear decay to 0 (``LinearSchedule``) |

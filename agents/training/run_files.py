@@ -20,11 +20,16 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.buffers import ReplayBuffer
+    from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+    from stable_baselines3.common.running_mean_std import RunningMeanStd
 
 from bboxtune.agents import readers
 from bboxtune.agents.readers import json_number, json_vector
@@ -83,10 +88,13 @@ def load_stats(path: Path, venv: VecEnv, *, training: bool) -> VecNormalize:
     if not isinstance(obs, dict) or not isinstance(ret, dict):
         raise RunError(f"{path}: obs_rms and ret_rms must be objects with mean, var, count")
     settings = {k: json_number(doc, k, path, 0.0, RunError) for k in ("clip_obs", "clip_reward", "gamma", "epsilon")}
-    norm = VecNormalize(venv, training=training, norm_obs=flags["norm_obs"], norm_reward=flags["norm_reward"], **settings)
-    norm.obs_rms.mean = json_vector(obs, "mean", shape[0], path, what=OBS_SIZE, error=RunError)
-    norm.obs_rms.var = json_vector(obs, "var", shape[0], path, 0.0, OBS_SIZE, RunError)
-    norm.obs_rms.count = json_number(obs, "count", path, 0.0, RunError)
+    norm = VecNormalize(venv, training=training, norm_obs=cast(bool, flags["norm_obs"]),
+                        norm_reward=cast(bool, flags["norm_reward"]), clip_obs=settings["clip_obs"],
+                        clip_reward=settings["clip_reward"], gamma=settings["gamma"], epsilon=settings["epsilon"])
+    obs_rms = cast("RunningMeanStd", norm.obs_rms)  # one RunningMeanStd: a flat Box observation (checked above)
+    obs_rms.mean = json_vector(obs, "mean", shape[0], path, what=OBS_SIZE, error=RunError)
+    obs_rms.var = json_vector(obs, "var", shape[0], path, 0.0, OBS_SIZE, RunError)
+    obs_rms.count = json_number(obs, "count", path, 0.0, RunError)
     norm.ret_rms.mean = np.float64(json_number(ret, "mean", path, error=RunError))
     norm.ret_rms.var = np.float64(json_number(ret, "var", path, 0.0, RunError))
     norm.ret_rms.count = json_number(ret, "count", path, 0.0, RunError)
@@ -121,9 +129,14 @@ def load_normalizer(folder: Path, venv: VecEnv, *, prefix: str = "", training: b
     return norm
 
 
+def _replay_buffer(model: BaseAlgorithm) -> ReplayBuffer:
+    """``model.replay_buffer``, typed: the callers check that the (off-policy) model has one."""
+    return cast("ReplayBuffer", cast("OffPolicyAlgorithm", model).replay_buffer)
+
+
 def save_replay_buffer(model: BaseAlgorithm, path: Path) -> None:
     """The replay buffer of an off-policy ``model`` as ``.npz`` (arrays, ``pos``, ``full``)."""
-    rb = model.replay_buffer
+    rb = _replay_buffer(model)
     arrays = {k: getattr(rb, k) for k in _REPLAY_ARRAYS if getattr(rb, k, None) is not None}
 
     atomic_write_file(path, lambda fh: np.savez(fh, pos=np.int64(rb.pos), full=np.bool_(rb.full), **arrays))
@@ -132,7 +145,7 @@ def save_replay_buffer(model: BaseAlgorithm, path: Path) -> None:
 def load_replay_buffer(model: BaseAlgorithm, path: Path) -> None:
     """Fill ``model.replay_buffer`` from :func:`save_replay_buffer`'s file; :class:`RunError` naming ``path`` if
     it is unreadable or its arrays do not match the buffer's shapes and dtypes."""
-    rb = model.replay_buffer
+    rb = _replay_buffer(model)
     wanted = {k for k in _REPLAY_ARRAYS if getattr(rb, k, None) is not None} | {"pos", "full"}
     try:
         textfile.check_regular(path)

@@ -26,7 +26,7 @@ import fcntl
 import os
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -48,6 +48,9 @@ from bboxtune.envs.episodes.config import EnvConfig
 from bboxtune.envs.episodes.features import FEATURE_NAMES
 from bboxtune.envs.retune_env import retune_observation_names
 from bboxtune.envs.vector import BATCHED_IDS, TuneBatch
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.running_mean_std import RunningMeanStd
 
 CONFIG = "config.yml"
 LOCK = "train.lock"
@@ -110,7 +113,7 @@ def load_config(run_dir: Path, keys: dict[str, type] = MODEL_KEYS) -> dict[str, 
         value = cfg.get(key)
         if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
             raise RunError(f"{path}: {key}={value!r}; expected a {kind.__name__}")
-        if kind is int and key != "seed" and value < 1:
+        if kind is int and key != "seed" and isinstance(value, int) and value < 1:
             raise RunError(f"{path}: {key}={value!r}; allowed: integers >= 1")
     if cfg["algo"] not in ALGOS:
         raise RunError(f"{path}: algo={cfg['algo']!r}; allowed: {sorted(ALGOS)}")
@@ -209,7 +212,8 @@ def hold_constant_features(obs: np.ndarray, normalizer: VecNormalize) -> np.ndar
     if not constant.any():
         return obs
     held = np.array(obs, dtype=np.float32)
-    held[..., constant] = np.asarray(normalizer.obs_rms.mean, dtype=np.float32)[constant]
+    rms = cast("RunningMeanStd", normalizer.obs_rms)  # one RunningMeanStd: a flat Box observation
+    held[..., constant] = np.asarray(rms.mean, dtype=np.float32)[constant]
     return held
 
 
@@ -217,7 +221,7 @@ def constant_features(normalizer: VecNormalize) -> np.ndarray:
     """Mask (F,) of the features that did not vary in training: VecNormalize variance below
     :data:`CONSTANT_FEATURE_VAR` plus twice what the running statistics' prior leaves in a constant feature
     (:data:`PRIOR_COUNT`)."""
-    rms = normalizer.obs_rms
+    rms = cast("RunningMeanStd", normalizer.obs_rms)  # one RunningMeanStd: a flat Box observation
     prior = 2.0 * PRIOR_COUNT * (1.0 + np.square(rms.mean)) / max(float(rms.count), PRIOR_COUNT)
     return np.asarray(rms.var) < CONSTANT_FEATURE_VAR + prior
 
@@ -263,7 +267,7 @@ class SB3Policy(ObsPolicy):
         obs = np.asarray(obs, dtype=np.float32)
         if self.normalizer is None:
             return obs
-        return self.normalizer.normalize_obs(hold_constant_features(obs, self.normalizer))
+        return cast(np.ndarray, self.normalizer.normalize_obs(hold_constant_features(obs, self.normalizer)))  # not a Dict obs
 
     def predict(self, obs: np.ndarray) -> np.ndarray:
         obs = self._normalized(obs)

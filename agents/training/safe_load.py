@@ -27,7 +27,7 @@ import pickle
 import warnings
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -38,6 +38,11 @@ from bboxtune.agents.training.hyperparams import constructor_kwargs, load_hyperp
 from bboxtune.agents.training.run_files import RunError
 from bboxtune.envs.data import textfile
 from bboxtune.envs.episodes.config import EnvConfig
+
+if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
+    from bboxtune.envs.track_env import TrackEnv
+
+Shape = tuple[int, ...]  # a Box space's shape (gymnasium types Space.shape as optional)
 
 MAX_MODEL_BYTES = 2**30  # a model.zip of this project is a few hundred kB
 RUN_ENV = "bboxtune_run_env"  # model attribute saved in data: {"env_id": ..., "env_kwargs": ...}
@@ -85,9 +90,10 @@ def _check_spaces(path: Path, data: dict[str, Any], venv: VecEnv) -> None:
         if not isinstance(stored, dict):
             raise RunError(f"{path}: data has no {key}")
         shape, dtype = stored.get("_shape"), stored.get("dtype")
-        if shape is not None and (list(shape) != list(space.shape) or str(dtype) != str(space.dtype)):
+        if shape is not None and (list(shape) != list(cast(Shape, space.shape)) or str(dtype) != str(space.dtype)):
             raise RunError(f"{path}: {key} {dtype}{list(shape)} differs from the config's env "
-                           f"({space.dtype}{list(space.shape)}): the model does not belong to this run's env/back end")
+                           f"({space.dtype}{list(cast(Shape, space.shape))}): the model does not belong to this run's "
+                           "env/back end")
 
 
 def replacements(path: Path, data: dict[str, Any], cfg: dict[str, Any], venv: VecEnv) -> dict[str, Any]:
@@ -98,8 +104,9 @@ def replacements(path: Path, data: dict[str, Any], cfg: dict[str, Any], venv: Ve
         hp = load_hyperparams(cfg["algo"], cfg["env_id"], cfg["hyperparams"])
         with warnings.catch_warnings():  # e.g. PPO's batch-size note for this venv's n_envs: not the run's
             warnings.simplefilter("ignore")
-            template = algo_class(cfg["algo"])(hp.policy, venv, device="cpu", _init_setup_model=False,
-                                               **constructor_kwargs(hp, venv.action_space.shape[0]))
+            # every class in ALGOS takes _init_setup_model; their declared base, BaseAlgorithm, does not
+            template = algo_class(cfg["algo"])(hp.policy, venv, device="cpu", _init_setup_model=False,  # type: ignore[call-arg]
+                                               **constructor_kwargs(hp, cast(Shape, venv.action_space.shape)[0]))
         template._setup_lr_schedule()
     except _LOAD_ERRORS as err:
         raise RunError(f"{path}: the run's hyperparams do not build a {cfg['algo']} model ({err})") from None
@@ -139,7 +146,7 @@ def load_model(path: Path, cfg: dict[str, Any], venv: VecEnv, **kwargs: Any) -> 
 
 
 def _space(space: gym.Space) -> str:
-    return f"{space.dtype}{list(space.shape)}"
+    return f"{space.dtype}{list(cast(Shape, space.shape))}"
 
 
 def check_env_match(path: Path, model: BaseAlgorithm, cfg: dict[str, Any], env: gym.Env) -> None:
@@ -157,7 +164,7 @@ def check_env_match(path: Path, model: BaseAlgorithm, cfg: dict[str, Any], env: 
         run = EnvConfig.from_kwargs(**cfg["env_kwargs"])
     except (TypeError, ValueError) as err:
         raise RunError(f"{path}: the run's env_kwargs are not a valid env configuration ({err})") from None
-    here = env.unwrapped.config
+    here = cast("TrackEnv", env.unwrapped).config
     if _meaning(run) != _meaning(here):
         raise RunError(f"{path}: action_space {_actions(run, model.action_space)} in its run, but "
                        f"{_actions(here, env.action_space)} in the evaluation env: the actions would mean other parameters")
@@ -169,5 +176,6 @@ def _meaning(cfg: EnvConfig) -> tuple[Any, ...]:
 
 
 def _actions(cfg: EnvConfig, space: gym.Space) -> str:
-    return (f"{_space(space)} sets {list(cfg.tune)} of back end {cfg.backend} (horizon_max {cfg.horizon_max}, "
+    tune = cast("tuple[str, ...]", cfg.tune)  # EnvConfig resolves None to the back end's default
+    return (f"{_space(space)} sets {list(tune)} of back end {cfg.backend} (horizon_max {cfg.horizon_max}, "
             f"sigma_decades {cfg.sigma_decades:g})")

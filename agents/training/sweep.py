@@ -101,7 +101,8 @@ def run_trial(config: dict[str, Any]) -> dict[str, float]:
     """Tune's function trainable: train, score on val, write ``trial.csv``, report the metrics."""
     from ray import tune
 
-    spec = SweepSpec(**{k: tuple(v) if isinstance(v, list) and k != "grid" else v for k, v in config["spec"].items()})
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) and k != "grid" else v for k, v in config["spec"].items()}
+    spec = SweepSpec(**fields)
     trial = config["trial"]
     folder = Path(config["out"]) / "trials" / trial["name"]
     folder.mkdir(parents=True, exist_ok=True)
@@ -193,7 +194,7 @@ def run_sweep(spec: SweepSpec, out: Path, *, address: str | None = None, cpus: i
         results = tuner.fit()
     finally:
         ray.shutdown()
-    errors = [str(r.error) for r in results if r.error]
+    errors = [str(err) for err in (results[i].error for i in range(len(results))) if err]  # a ResultGrid: len, [i]
     table = aggregate(out)
     if errors:
         raise RunError(f"{len(errors)} trial(s) failed (the others are aggregated in {out / 'aggregate.md'}): {errors[0]}")

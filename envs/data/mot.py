@@ -103,7 +103,7 @@ def match_identities(det: Detections, gt: GroundTruth, iou_threshold: float = MA
     g_pair = g_order[np.repeat(g_lo, sizes) + offset % width]
     overlaps = iou(det.box[d_pair], gt.box[g_pair])
     allowed = np.where(overlaps >= threshold, overlaps, 0.0)  # a zero pair adds nothing: dropped below
-    candidates = np.flatnonzero(np.add.reduceat(allowed, starts) > 0) if len(frames) else []
+    candidates: np.ndarray | list[int] = np.flatnonzero(np.add.reduceat(allowed, starts) > 0) if len(frames) else []
     out = np.full(len(gt), -1, dtype=np.int64)
     for k in candidates:  # the frames with at least one allowed pair
         matrix = allowed[starts[k]:starts[k] + sizes[k]].reshape(n_det[k], n_gt[k])

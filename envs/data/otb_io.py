@@ -109,8 +109,8 @@ def check_boxes(boxes: np.ndarray, locate: Callable[[int], str]) -> np.ndarray:
         i = int(np.argmax(negative))
         raise ValueError(f"{locate(i)}: negative size w={boxes[i, 2]:g}, h={boxes[i, 3]:g}; allowed w, h >= 0")
     empty = (boxes[:, 2:] == 0).any(axis=1)
-    for i in np.flatnonzero(empty):
-        logger.info("%s: zero-size box %s read as a missing frame", locate(int(i)), boxes[i].tolist())
+    for k in np.flatnonzero(empty):
+        logger.info("%s: zero-size box %s read as a missing frame", locate(int(k)), boxes[k].tolist())
     out = boxes.astype(float, copy=True)
     out[empty] = np.nan
     return out

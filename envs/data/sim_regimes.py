@@ -86,7 +86,7 @@ def simulate_nonstationary(base: Scenario, noise_seed: int, psi_range: tuple[flo
     cmn = np.empty_like(e)
     v = e[0] * regimes[0]["sigma_xi"] / np.sqrt(1.0 - regimes[0]["psi"] ** 2)  # stationary start of regime 0
     cmn[0] = v
-    for k, r in enumerate(regimes):  # v_n = ψ_k v_{n−1} + ξ_n (2), carried across switches
+    for r in regimes:  # v_n = ψ_k v_{n−1} + ξ_n (2), carried across switches
         lo = max(r["start"], 1)
         if lo < r["end"]:
             cmn[lo:r["end"]], _ = lfilter([1.0], [1.0, -r["psi"]], e[lo:r["end"]] * r["sigma_xi"], axis=0,

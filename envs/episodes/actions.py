@@ -29,7 +29,7 @@ anything further out, NaN or ±inf raises ``ValueError``; so does a wrong shape 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,7 +146,8 @@ class ActionMap:
                              f"for tune={self.tune}")
         if not (np.abs(a2) <= 1 + _TOLERANCE).all():  # NaN and ±inf fail this too
             if not np.isfinite(a2).all():
-                raise ValueError(f"action {a.tolist() if a.size <= 8 else a.shape} contains NaN or inf; allowed finite values in [-1, 1]")
+                raise ValueError(f"action {a.tolist() if a.size <= 8 else a.shape} contains NaN or inf; allowed finite "
+                                 "values in [-1, 1]")
             worst = float(a2.flat[np.argmax(np.abs(a2))])
             raise ValueError(f"action entry {worst} is out of range: allowed [-1, 1]")
         return np.minimum(np.maximum(a2, -1.0), 1.0)
@@ -185,7 +186,7 @@ class ActionMap:
                 out[name] = values[name] * 10.0 ** (self.sigma_decades * a[:, j])
         return out
 
-    def to_actions(self, params: dict[str, np.ndarray | float], nominal: Nominal) -> np.ndarray:
+    def to_actions(self, params: Mapping[str, np.ndarray | float], nominal: Nominal) -> np.ndarray:
         """Physical parameters → actions (A, d): the inverse of :meth:`to_params` (for baselines).
 
         Values outside the reachable range raise ``ValueError``."""
@@ -195,7 +196,8 @@ class ActionMap:
             if name == "psi":
                 a = 2.0 * v / self.psi_max - 1.0
             elif name == "horizon":
-                a = 2.0 * np.log(v / self.K) / np.log(self.horizon_max / self.K) - 1.0 if self.horizon_max > self.K else np.zeros_like(v)
+                a = (2.0 * np.log(v / self.K) / np.log(self.horizon_max / self.K) - 1.0 if self.horizon_max > self.K
+                     else np.zeros_like(v))
             else:
                 a = np.log10(v / getattr(nominal, name)) / self.sigma_decades
             if np.any(~np.isfinite(a)) or np.any(np.abs(a) > 1 + 1e-9):

@@ -90,7 +90,8 @@ def _trackers(value: Any) -> tuple[str, ...] | None:
     under the OTB root is checked by the source, which reads it)."""
     if value is None:
         return None
-    if isinstance(value, str) or not isinstance(value, (Sequence, np.ndarray)) or not all(isinstance(t, str) and t for t in value):
+    if (isinstance(value, str) or not isinstance(value, (Sequence, np.ndarray))
+            or not all(isinstance(t, str) and t for t in value)):
         raise TypeError(f"trackers={value!r}; allowed: None or a sequence of tracker names (non-empty str)")
     trackers = tuple(str(t) for t in value)
     if not trackers or len(set(trackers)) != len(trackers):

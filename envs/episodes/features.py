@@ -31,6 +31,7 @@ Degenerate statistics (fewer than 4 valid differences, zero variance) are floore
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -142,8 +143,9 @@ def _estimate_sigmas(y: np.ndarray, tau: float | np.ndarray) -> tuple[np.ndarray
     return np.sqrt(var_v), np.sqrt(var_w)
 
 
-def measurement_features(y: np.ndarray, tau: float | np.ndarray, nominal_sigma_v: float | np.ndarray,
-                         nominal_sigma_w: float | np.ndarray, rule_positions: np.ndarray) -> np.ndarray:
+def measurement_features(y: np.ndarray, tau: float | Sequence[float] | np.ndarray,
+                         nominal_sigma_v: float | Sequence[float] | np.ndarray,
+                         nominal_sigma_w: float | Sequence[float] | np.ndarray, rule_positions: np.ndarray) -> np.ndarray:
     """The observation vector (len(FEATURE_NAMES),) float32 of one track, or (B, len(FEATURE_NAMES)) of B
     tracks of equal length at once.
 

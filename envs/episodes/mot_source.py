@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -66,7 +67,7 @@ def identity_episode(cfg: EnvConfig, identity: mot.MOTIdentity, noise_seed: int 
     y = xywh_to_cxcywh(identity.measured[cut])
     truth = xywh_to_cxcywh(identity.truth[cut])
     tau = identity.tau * stride
-    scale = box_scale(y)
+    scale = cast(float, box_scale(y))  # of one track (T, 4)
     nominal = rule_nominal(cfg, cfg.otb_sigma_v_rel * scale, cfg.otb_sigma_w_rel * scale, tau)
     meta = {"sequence": identity_name(identity), "noise_seed": noise_seed, "tau": tau,
             "first_frame": identity.first_frame + int(cut[0]) if len(cut) else identity.first_frame}

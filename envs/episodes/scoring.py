@@ -10,7 +10,8 @@ from bboxtune.envs.episodes.actions import ACCEPTS
 from bboxtune.filters.bytetrack_kf import SIZE_MIN
 
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
-POSITIVE_SIZES = ("bytetrack_kf", "sort_kf")  # back ends that take boxes with w, h >= SIZE_MIN only (they filter the aspect w / h)
+# back ends that take boxes with w, h >= SIZE_MIN only (they filter the aspect w / h)
+POSITIVE_SIZES = ("bytetrack_kf", "sort_kf")
 
 
 def box_model(tau: float) -> filters.StateSpaceModel:
@@ -159,10 +160,12 @@ def reward_label(kind: str, baseline: str = "rule") -> str:
     return f"log(RMSE_{baseline}/RMSE)" if kind == "rmse" else f"{kind} minus the {baseline}'s"
 
 
-def reward_from(scores: dict[str, np.ndarray], rule: dict[str, float], kind: str) -> np.ndarray:
+def reward_from(scores: dict[str, np.ndarray], rule: dict[str, float] | dict[str, np.ndarray],
+                kind: str) -> np.ndarray:
     """The env reward for candidates' ``scores`` against the reference's (``rule``: the rule's, or
-    :func:`reference_scores`): ``rmse`` → log(RMSE_ref / RMSE) (scale-free: 0 = as good as the reference, +0.1 ≈
-    10 % lower RMSE); ``iou_precision`` / ``success_auc`` → candidate minus reference."""
+    :func:`reference_scores`; floats, or arrays (B,) one per candidate's episode): ``rmse`` → log(RMSE_ref / RMSE)
+    (scale-free: 0 = as good as the reference, +0.1 ≈ 10 % lower RMSE); ``iou_precision`` / ``success_auc`` →
+    candidate minus reference."""
     if kind == "rmse":
         return np.log(rule["rmse"] / np.maximum(scores["rmse"], 1e-300))
     return scores[kind] - rule[kind]

@@ -32,7 +32,7 @@ enough keeps its sequence), and pinning a shorter one raises ``ValueError``.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -103,8 +103,8 @@ class SimSource(Source):
             ys, drawn = _detected(self.cfg, noise_seeds, [ep.y for ep in episodes], [ep.truth for ep in episodes])
             return [replace(ep, y=y, scenario={**ep.scenario, **d}) for ep, y, d in zip(episodes, ys, drawn, strict=False)]
         tracks = simulate_each(scenarios, rngs)
-        horizons = rule_horizon(self.sigma_v_nominal, self.sigma_w_nominal, np.array([t.tau for t in tracks]), K_AXIS,
-                                max_horizon=self.cfg.horizon_max)
+        horizons = cast(np.ndarray, rule_horizon(self.sigma_v_nominal, self.sigma_w_nominal, np.array([t.tau for t in tracks]),
+                                                 K_AXIS, max_horizon=self.cfg.horizon_max))  # one per track
         truths = [self._truth(scenario, track) for scenario, track in zip(scenarios, tracks, strict=False)]
         ys = [track.y for track in tracks]
         if self.cfg.sim_noise == "box":
@@ -116,7 +116,7 @@ class SimSource(Source):
                                                                truths, drawn, strict=False):
             meta = {"sequence": None, "noise_seed": seed, "tau": scenario.tau}
             if self.cfg.sim_noise == "box":  # the OTB sources' nominal σ, relative to the measured box scale
-                scale = box_scale(y)
+                scale = cast(float, box_scale(y))  # of one track (T, 4)
                 nominal = rule_nominal(self.cfg, self.cfg.otb_sigma_v_rel * scale, self.cfg.otb_sigma_w_rel * scale,
                                        track.tau)
             else:
@@ -129,7 +129,7 @@ class SimSource(Source):
     @staticmethod
     def _truth(scenario: Scenario, track: Track) -> dict[str, Any]:
         """The episode's true scenario (its ``scenario`` before ``sim_noise="box"`` and detection errors)."""
-        truth = {"psi": scenario.psi, "sigma_w": scenario.sigma_w, "sigma_xi": scenario.sigma_xi}
+        truth: dict[str, Any] = {"psi": scenario.psi, "sigma_w": scenario.sigma_w, "sigma_xi": scenario.sigma_xi}
         if scenario.motion == "otb":  # σ_w: the rms true centre acceleration, the CV model's equivalent
             acceleration = np.diff(track.truth_state[:, 4:6], axis=0) / track.tau
             truth.update(sigma_w=float(np.sqrt(np.mean(acceleration**2))), motion="otb",
@@ -258,11 +258,11 @@ class OTBSource(Source):
             track = replay_synthetic(gt[frames], psi=psi, sigma_rel=sigma_rel, rng=rng, tau=cfg.otb_tau)
             scenario.update(psi=psi, sigma_rel=sigma_rel)
         else:
-            boxes = self.dataset.tracker_boxes(tracker, name)
+            boxes = self.dataset.tracker_boxes(cast(str, tracker), name)  # otb_tracker: picked above if not given
             track = replay_tracker(gt[frames], boxes[frames], tau=cfg.otb_tau)
             meta.update(tracker=tracker)
         (y,), (drawn,) = _detected(cfg, [noise_seed], [track.y], [track.truth])
-        scale = box_scale(y)
+        scale = cast(float, box_scale(y))  # of one track (T, 4)
         nominal = rule_nominal(cfg, cfg.otb_sigma_v_rel * scale, cfg.otb_sigma_w_rel * scale, track.tau)
         return Episode(truth=track.truth, y=y, tau=track.tau, nominal=nominal, meta=meta, scenario={**scenario, **drawn})
 
@@ -330,8 +330,10 @@ class MixSource(Source):
     def draw_many(self, noise_seeds: list[int]) -> list[Episode]:
         """The episodes of ``noise_seeds`` (the sim ones simulated in one vectorised pass), in order."""
         parts = [self.part_of(seed) for seed in noise_seeds]
-        sim = iter(self.parts["sim"].draw_many([s for s, p in zip(noise_seeds, parts, strict=False) if p == "sim"]) if "sim" in self.parts else [])
-        return [_labelled(next(sim) if p == "sim" else self.parts[p].draw(None, s), p) for s, p in zip(noise_seeds, parts, strict=False)]
+        sim = iter(self.parts["sim"].draw_many([s for s, p in zip(noise_seeds, parts, strict=False) if p == "sim"])
+                   if "sim" in self.parts else [])
+        return [_labelled(next(sim) if p == "sim" else self.parts[p].draw(None, s), p)
+                for s, p in zip(noise_seeds, parts, strict=False)]
 
 
 def _mot_part(cfg: EnvConfig, part: EnvConfig) -> MOTSource:

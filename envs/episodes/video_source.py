@@ -28,7 +28,7 @@ import json
 import os
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -129,6 +129,8 @@ class VideoSource(Source):
     """Episodes from synthetic videos of one split measured by one detector (an :class:`bboxtune.envs.episodes.sources.Source`:
     ``draw(sequence, noise_seed) -> Episode``; boxes cx, cy, w, h)."""
 
+    n_frames: int  # every video's length (cfg.track_length): always fixed here
+
     def __init__(self, cfg: Any, settings: VideoSettings | None = None) -> None:
         self.cfg = cfg
         self.settings = settings or VideoSettings.from_config(cfg)
@@ -154,7 +156,7 @@ class VideoSource(Source):
         y = xywh_to_cxcywh(data["y"])
         tau = float(data["tau"])
         rel_v, rel_w = self.settings.nominal_rel
-        scale = box_scale(y)
+        scale = cast(float, box_scale(y))  # of one track (T, 4)
         sigma_v, sigma_w = rel_v * scale, rel_w * scale
         nominal = Nominal.of_rule(sigma_v, sigma_w, tau, self.nominal_psi, self.horizon_max)
         meta = {**meta, "detector": self.settings.detector, "tau": tau,

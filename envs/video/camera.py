@@ -54,7 +54,8 @@ def frame_shift(prev: np.ndarray, cur: np.ndarray) -> np.ndarray:
     p0 = cv2.goodFeaturesToTrack(prev, _MAX_CORNERS, 0.01, 7)
     if p0 is None or len(p0) < 3:
         return np.full(2, np.nan)
-    p1, status, _ = cv2.calcOpticalFlowPyrLK(prev, cur, p0, None, winSize=(21, 21), maxLevel=3)
+    # OpenCV's stubs type nextPts as required; None (OpenCV allocates it) is its documented Python use
+    p1, status, _ = cv2.calcOpticalFlowPyrLK(prev, cur, p0, None, winSize=(21, 21), maxLevel=3)  # type: ignore[call-overload]
     ok = status[:, 0] == 1
     if ok.sum() < 3:
         return np.full(2, np.nan)

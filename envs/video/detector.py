@@ -6,7 +6,7 @@ subtraction, the registry) and :mod:`bboxtune.envs.video.matching` (template and
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar
+from typing import Any
 
 import cv2
 import numpy as np
@@ -38,7 +38,7 @@ def blob_boxes(mask: np.ndarray, min_area: float) -> tuple[np.ndarray, np.ndarra
 class Detector(ABC):
     """A stateful per-frame detector: :meth:`start` once, then :meth:`detect` on every later frame."""
 
-    name: ClassVar[str]
+    name: str  # set on the class, or per instance (FeatureDetector: its kind, "sift" or "orb")
     redetect_after: int = MAX_WIDENING + 1  # frames missed in a row after which the search window is the whole frame
 
     def start(self, frame: np.ndarray, box: np.ndarray) -> None:

@@ -134,8 +134,8 @@ class RegionDetector(Detector):
         binary = _clean((inside > 127).astype(np.uint8), self.open_size, self.close_size)
         n, labels, stats, centroids = cv2.connectedComponentsWithStats(binary, connectivity=8)
         x0, y0, x1, y1 = self.window(binary.shape, self.search)
-        inside = (centroids[:, 0] >= x0) & (centroids[:, 0] < x1) & (centroids[:, 1] >= y0) & (centroids[:, 1] < y1)
-        ok = np.flatnonzero(inside & (stats[:, cv2.CC_STAT_AREA] >= self.min_area))
+        in_window = (centroids[:, 0] >= x0) & (centroids[:, 0] < x1) & (centroids[:, 1] >= y0) & (centroids[:, 1] < y1)
+        ok = np.flatnonzero(in_window & (stats[:, cv2.CC_STAT_AREA] >= self.min_area))
         ok = ok[ok > 0]  # label 0 is the background
         if len(ok) == 0:
             return NAN_BOX.copy()

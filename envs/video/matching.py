@@ -184,10 +184,10 @@ class FeatureDetector(Detector):
         self.search = check_range(kind, "search", search, 0, 100)  # × box size
         self.pad = int(check_range(kind, "pad", pad, 0, 1000))  # px of context around crops for descriptors
         if kind == "sift":
-            self._features = cv2.SIFT_create(contrastThreshold=0.02)
+            self._features: cv2.Feature2D = cv2.SIFT.create(contrastThreshold=0.02)
             self._matcher = cv2.BFMatcher(cv2.NORM_L2)
         else:
-            self._features = cv2.ORB_create(nfeatures=1000, scaleFactor=1.2, nlevels=4, edgeThreshold=9, patchSize=9,
+            self._features = cv2.ORB.create(nfeatures=1000, scaleFactor=1.2, nlevels=4, edgeThreshold=9, patchSize=9,
                                             fastThreshold=8)
             self._matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
 

@@ -19,7 +19,8 @@ from bboxtune.envs.track_env import RESET_OPTIONS
 
 FIELDS = tuple(f.name for f in fields(EnvConfig)) + ("render_mode",)
 NUMBER = st.one_of(st.integers(-10, 200_000), st.floats(-10.0, 1e5), st.floats(allow_nan=True, allow_infinity=True),
-                   st.integers(-(2**70), 2**70), st.sampled_from([10**400, -(10**400)]), st.sampled_from([np.int64(64), np.float32(0.5), np.float64(1e-3), True]))
+                   st.integers(-(2**70), 2**70), st.sampled_from([10**400, -(10**400)]),
+                   st.sampled_from([np.int64(64), np.float32(0.5), np.float64(1e-3), True]))
 GARBAGE = st.one_of(
     st.none(), NUMBER, st.text(max_size=6), st.binary(max_size=3),
     st.sampled_from(["sim", "100", "1e3", "rgb_array", "ufir_cmn", "kf", "psi", "train", "SiamFC", "regions", "rmse",
@@ -76,7 +77,8 @@ def test_reset_arguments_work_or_are_rejected_and_change_nothing(seed: object, o
     try:
         env.reset(seed=seed, options=options)
     except Exception as err:  # noqa: BLE001
-        names = ["seed", "options"] + [repr(k) for k in options] + [str(k) for k in options] if isinstance(options, dict) else ["seed", "options"]
+        names = (["seed", "options"] + [repr(k) for k in options] + [str(k) for k in options] if isinstance(options, dict)
+                 else ["seed", "options"])
         _check_rejection(err, names)
         # rejected: the episode of reset(seed=1) is still current, and np_random is where it was
         action = np.array([0.1, -0.4], np.float32)

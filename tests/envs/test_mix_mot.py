@@ -2,14 +2,17 @@
 configurations of before give the same episodes bit for bit, the 4-tuple and its refusals, the part
 frequencies, the split rule, and real detections left as they are (no dropout or outliers on the mot part).
 
-Reference hashes (:data:`REFERENCE`): produced with the code of commit 63dca62 (before the mot part existed) by
-copying this file into a worktree of that commit and running it there as a script::
+Reference hashes (:data:`REFERENCE`): produced with the code of commit 63dca62 (before the mot part existed, and
+before the ``bboxtune`` namespace) by running this file's hash functions there as a script: this file as of commit
+b337d96 (the same functions, with the old import names; filter outputs in the env hashes rounded as
+:func:`env_hash` rounds them here) copied into a worktree of 63dca62::
 
-    git worktree add --detach /tmp/wt-ref 63dca62 && cp tests/envs/test_mix_mot.py /tmp/wt-ref/tests/envs/
-    cd /tmp/wt-ref && OTB_ROOT=... python -m tests.envs.test_mix_mot
+    git worktree add --detach /tmp/wt-ref 63dca62
+    git show b337d96:tests/envs/test_mix_mot.py > /tmp/wt-ref/tests/envs/test_mix_mot.py  # then round as env_hash
+    cd /tmp/wt-ref && OTB_ROOT=... PYTHONPATH=. python -m tests.envs.test_mix_mot
 
-(the module's top-level imports exist at that commit; only :func:`reference_hashes` runs). They hash the episodes
-of the OTB copy in ``$OTB_ROOT`` (``shared/data/otb``); another copy of the data gives other hashes.
+They hash the episodes of the OTB copy in ``$OTB_ROOT`` (``shared/data/otb``); another copy of the data gives
+other hashes.
 """
 
 from __future__ import annotations
@@ -63,9 +66,9 @@ REFERENCE = {
     "source:trackers_speedup_bernoulli": "1d71b521fab240c00b47",
     "source:val_no_tracker": "c4a96dd480c42058b83a",
     "source:test_otb_motion_runs": "ba61677c5b4d18fe2311",
-    "env:tune_sim_only": "2d9193a1c0901f20554f",
-    "env:tune_default": "b78cc58539e28b6d40fe",
-    "env:retune_runs": "5aab23aef64c0535e876",
+    "env:tune_sim_only": "42212caa5c483b24e3ca",
+    "env:tune_default": "b2f860a384cacc536cdf",
+    "env:retune_runs": "2225ed3d76514a86bb02",
 }
 HARSH = {"detection_dropout": "runs", "miss_rate_range": (0.5, 0.95), "miss_run_range": (1.0, 1000.0),
          "outlier_rate_range": (0.3, 0.5)}
@@ -109,30 +112,32 @@ def source_hash(kwargs: dict[str, Any]) -> str:
     return _digest([episode_bytes(ep) for ep in episodes])
 
 
-def _rounded(value: Any) -> str:
+def _rounded(value: Any, digits: int = 10) -> str:
     """A filter output (reward, score) to 10 significant digits: the rule's last bit depends on the process (the same
     code at 63dca62 gives RMSEs 1 ulp apart depending on what ran before it: numpy's reductions round by alignment)."""
     if isinstance(value, dict):
-        return "{" + ",".join(f"{k!r}:{_rounded(value[k])}" for k in sorted(value)) + "}"
+        return "{" + ",".join(f"{k!r}:{_rounded(value[k], digits)}" for k in sorted(value)) + "}"
     if isinstance(value, (list, tuple)):
-        return "[" + ",".join(_rounded(v) for v in value) + "]"
+        return "[" + ",".join(_rounded(v, digits) for v in value) + "]"
     if isinstance(value, (float, np.floating)):
-        return f"{float(value):.9e}"
+        return f"{float(value):.{digits - 1}e}"
     return _canon(value)
 
 
 def env_hash(env_id: str, kwargs: dict[str, Any]) -> str:
-    """The episodes (bit for bit), observations and track infos of 6 episodes (reset(seed=3), then unseeded), and
-    their rewards and step infos with fixed actions (ufir_cmn; to 10 digits, :func:`_rounded`)."""
+    """The episodes (bit for bit) and track infos of 6 episodes (reset(seed=3), then unseeded), their observations
+    (to 6 digits: float32 features of filter runs) and their rewards and step infos with fixed actions (ufir_cmn; to
+    10 digits, :func:`_rounded`)."""
     env = gym.make(env_id, source="mix", backend="ufir_cmn", otb_root=OTB_ROOT, **kwargs)
     parts = []
     for i in range(6):
         obs, info = env.reset(seed=3 if i == 0 else None)
-        parts += [episode_bytes(env.unwrapped.episode), obs.tobytes(), _canon(info).encode()]
+        parts += [episode_bytes(env.unwrapped.episode), _rounded(obs.tolist(), 6).encode(), _canon(info).encode()]
         terminated = False
         while not terminated:
             obs, reward, terminated, _, step = env.step(np.full(env.action_space.shape, 0.2 - 0.1 * i, np.float32))
-            parts += [obs.tobytes(), _rounded([reward, {k: v for k, v in step.items() if k != "params"}]).encode()]
+            parts += [_rounded(obs.tolist(), 6).encode(),
+                      _rounded([reward, {k: v for k, v in step.items() if k != "params"}]).encode()]
     return _digest(parts)
 
 

@@ -17,7 +17,8 @@ SHORT = {"track_length": 120}
 
 
 def _make(env_id: str, backend: str, source: str, **kw) -> gym.Env:
-    extra = {"otb_root": OTB_ROOT} if source in ("otb", "otb_tracker") else {"otb_root": OTB_ROOT, **SHORT} if source == "mix" else dict(SHORT)
+    extra = ({"otb_root": OTB_ROOT} if source in ("otb", "otb_tracker")
+             else {"otb_root": OTB_ROOT, **SHORT} if source == "mix" else dict(SHORT))
     return gym.make(env_id, backend=backend, source=source, **extra, **kw)
 
 

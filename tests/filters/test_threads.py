@@ -57,3 +57,13 @@ def test_a_bad_thread_count_is_refused_naming_the_variable(text: str, monkeypatc
     monkeypatch.setenv(threads.ENV_VAR, text)
     with pytest.raises(ValueError, match=f"{threads.ENV_VAR}=.*allowed: an integer in \\[1, 1024\\]"):
         filters.make("kf", filters.constant_velocity(0.05)).run(np.zeros((5, 2)))
+
+
+def test_a_process_already_at_the_count_changes_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The fast path: every BLAS library at most at the count, so no limit is set (and none restored) per call."""
+    monkeypatch.setenv(threads.ENV_VAR, "1")
+    flt = filters.make("kf", filters.constant_velocity(0.05))
+    with threadpool_limits(1, user_api="blas"):
+        controller = threads._controller()
+        monkeypatch.setattr(type(controller), "limit", lambda *a, **k: pytest.fail("limit() called on the fast path"))
+        assert flt.run(np.zeros((5, 1))).shape == (5, 2)

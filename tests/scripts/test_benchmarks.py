@@ -19,7 +19,7 @@ def test_bench_env_prints_its_four_rates(capsys):
                     "--track-length", "60", "--n-envs", "4", "--vec-steps", "2", "--filterpy-tracks", "1"])
     out = capsys.readouterr().out
     for label in ("[1] gym.make + reset + step", "[2] batched score()", "[3] the filter alone", "[4] batched vec env"):
-        line = next(l for l in out.splitlines() if l.startswith(label))
+        line = next(s for s in out.splitlines() if s.startswith(label))
         assert re.search(r"[\d,]+ \([\d,]+\) (env steps|steps|episodes)/s|[\d,]+ runs/s", line), line
 
 

@@ -62,7 +62,8 @@ COMPARE = [
 ]
 TRACK_VIDEO = [
     misuse(mentions="--synthetic"), misuse("--synthetic", "--video", "{file}", mentions="--video"),
-    misuse("--video", "{missing}"), misuse("--video", "{dir}"), misuse("--video", "{file}", mentions="{file}: not a readable video"),
+    misuse("--video", "{missing}"), misuse("--video", "{dir}"),
+    misuse("--video", "{file}", mentions="{file}: not a readable video"),
     misuse("--frames", "{missing}"), misuse("--frames", "{file}"), misuse("--frames", "{dir}", mentions="{dir}"),
     *[misuse("--synthetic", "--init", v) for v in ("1,2,3", "a,b,c,d", "1,2,0,4", "nan,1,2,3", "")],
     *[misuse("--synthetic", "--n-frames", v) for v in (*COUNT, "1")],

@@ -15,8 +15,8 @@ from bboxtune.agents.policies.gate_file import read_gate
 from bboxtune.agents.splits import eval_seeds, split_of, split_seeds
 
 REQUIRED = ("method", "episode", "sequence", "tracker", "rmse", "success_auc", "precision20")
-METHODS = {"raw", "bytetrack_kf", "sort_kf", "rule", "rule_est_sigma", "rule_true_sigma", "oracle", "oracle_auc", "global", "amortised", "adaptive",
-           "ppo", "ppo_best"}
+METHODS = {"raw", "bytetrack_kf", "sort_kf", "rule", "rule_est_sigma", "rule_true_sigma", "oracle", "oracle_auc", "global",
+           "amortised", "adaptive", "ppo", "ppo_best"}
 EPISODES = 6
 FAST = ["--train-episodes", "24", "--global-trials", "8", "--oracle-budget", "16", "--bootstrap", "50"]
 OTB = os.environ.get("OTB_ROOT")

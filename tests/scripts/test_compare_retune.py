@@ -57,8 +57,8 @@ def test_compare_scores_retune_runs_against_every_baseline(runs: tuple[Path, Pat
     assert "val-split episodes: window_residual_s0 " in summary
     assert "oneshot_learned: `" in summary and (out / "parameter_schedule.png").stat().st_size > 0
     seeds = summary.split("## Across training seeds")[1].split("## Figures")[0]
-    for row in ("| ppo | 2 |", "| ppo_best | 2 |", "| window_amortised | 2 |", "| window_anchored | 2 |", "| window_residual | 2 |",
-                "| rule | 1 | +0.000 [+0.000, +0.000]",
+    for row in ("| ppo | 2 |", "| ppo_best | 2 |", "| window_amortised | 2 |", "| window_anchored | 2 |",
+                "| window_residual | 2 |", "| rule | 1 | +0.000 [+0.000, +0.000]",
                 "| oneshot_learned | 1 |", "| window_oracle | 1 |"):
         assert row in seeds
 
@@ -91,8 +91,8 @@ def test_anchor_flags_are_checked_before_any_work(runs: tuple[Path, Path, Path],
     assert message in capsys.readouterr().err and not (tmp_path / "c").exists()
 
 
-def test_an_offline_view_run_is_scored_and_a_causal_model_is_refused_there(train, runs: tuple[Path, Path, Path],  # noqa: F811
-                                                                           tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_an_offline_view_run_is_scored_and_a_causal_model_is_refused_there(
+        train, runs: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: F811
     """retune_view=offline travels with the run (config.yml): the sequential model and the window regressor it fits
     observe the offline view; a causal model asked on it is refused (observation shape), nothing written."""
     causal, oneshot, _ = runs

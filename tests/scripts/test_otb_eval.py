@@ -89,7 +89,7 @@ def test_reproduces_published_otb100_success_auc(capsys):
     table = json.loads(capsys.readouterr().out)
     assert set(table) == set(PUBLISHED_AUC)
     for tracker, auc in PUBLISHED_AUC.items():
-        assert table[tracker]["success_auc"] == pytest.approx(auc, abs=0.002), tracker  # the README's promise
+        assert table[tracker]["success_auc"] == pytest.approx(auc, abs=0.002), tracker  # docs/environments.md's promise
         assert table[tracker]["n_sequences"] == (73 if tracker in ("MEEM", "MUSTer") else 100)
     assert table["SiamRPN++"]["precision20"] == pytest.approx(0.905, abs=0.005)
 

@@ -110,6 +110,8 @@ def test_a_gate_writes_the_sequences_it_leaves_alone_as_read(tmp_path, capsys):
     assert [row[4] for row in table] == ["1", "1", "1"]
     for name, boxes in raw.items():
         np.testing.assert_array_equal(read_boxes(tmp_path / "alone" / name), boxes)  # missing frames stay missing
+        # byte for byte: tabs and integers (beta_1), 0,0,0,0 rows (Gamma), the final newline, all as read
+        assert (tmp_path / "alone" / name).read_bytes() == (tmp_path / "SiamX" / name).read_bytes()
     folder = tmp_path / "gated_tuner"
     shutil.copytree(REPO / "agents/pretrained/sim_ufir_cmn", folder)
     write_gate_file(folder / GATE_FILE, np.inf)

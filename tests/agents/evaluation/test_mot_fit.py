@@ -1,4 +1,5 @@
-"""bboxtune.agents.evaluation.mot_fit: the simulator's detection noise fitted to MOT statistics, and measured back on the simulator."""
+"""bboxtune.agents.evaluation.mot_fit: the simulator's detection noise fitted to MOT statistics, and measured back on the
+simulator."""
 
 from __future__ import annotations
 

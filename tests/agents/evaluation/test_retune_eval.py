@@ -1,4 +1,5 @@
-"""FilterRetune-v0 evaluation (bboxtune.agents.evaluation.retune_eval, bboxtune.agents.evaluation.report_retune) and the env pieces it rests on."""
+"""FilterRetune-v0 evaluation (bboxtune.agents.evaluation.retune_eval, bboxtune.agents.evaluation.report_retune) and the
+env pieces it rests on."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""bboxtune.agents.evaluation.window_regressor: the per-window full-information regressor (a learned sequential tuner without RL)."""
+"""bboxtune.agents.evaluation.window_regressor: the per-window full-information regressor (a learned sequential tuner
+without RL)."""
 
 from __future__ import annotations
 

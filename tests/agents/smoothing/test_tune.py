@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from bboxtune import agents
+from bboxtune.agents.policies.gate_file import Gate, LinearGain
 from bboxtune.agents.smoothing import pretrained
 from bboxtune.agents.smoothing.tuner import load_pretrained
 from bboxtune.agents.training.run_files import RunError
@@ -200,3 +201,28 @@ def test_smooth_checks_given_params():
     tuner = load_pretrained("sim_ufir_cmn")
     with pytest.raises(ValueError, match=r"params has keys \['horizon'\]; back end ufir_cmn takes"):
         tuner.smooth(GOOD, 1 / 30, {"horizon": 5})
+
+
+@pytest.mark.parametrize("gate_margin", [None, np.inf])
+def test_smooth_checks_and_converts_the_track_once(gate_margin: float | None, monkeypatch: pytest.MonkeyPatch) -> None:
+    """One check of the boxes and tau, and one xywh -> cxcywh conversion, on the smoothing path and on the path
+    where the gate leaves the track alone (whose boxes come back exactly as given)."""
+    tuner = load_pretrained("sim_ufir_cmn")
+    if gate_margin is not None:
+        n = tuner.policy.model.observation_space.shape[0]
+        gain = LinearGain(mean=np.zeros(n), scale=np.ones(n), coef=np.zeros(n), intercept=0.0)
+        tuner = dataclasses.replace(tuner, gate=Gate(gain, gate_margin))
+    calls = {"check_boxes": 0, "check_tau": 0, "xywh_to_cxcywh": 0}
+    for name in calls:
+        original = getattr(tune_module, name)
+
+        def counted(*args, _name=name, _original=original, **kwargs):
+            calls[_name] += 1
+            return _original(*args, **kwargs)
+
+        monkeypatch.setattr(tune_module, name, counted)
+    boxes = _track()
+    out = tuner.smooth(boxes, 1 / 30)
+    assert calls == {"check_boxes": 1, "check_tau": 1, "xywh_to_cxcywh": 1}
+    if gate_margin is not None:
+        np.testing.assert_array_equal(out, boxes)

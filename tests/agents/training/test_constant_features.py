@@ -13,7 +13,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from bboxtune.agents.training.runs import SB3Policy, constant_features, describe_held_features, hold_constant_features
 
 MEAN = np.array([0.0, np.log(500.0), 1.0])  # feature 1: log_n_frames of 500-frame training tracks
-VAR = np.array([1.0, 4e-8, 3e-3])  # 4e-8: what the running prior leaves in a constant after 1e5 steps; 3e-3: a real small variance
+# 4e-8: what the running prior leaves in a constant after 1e5 steps; 3e-3: a real small variance
+VAR = np.array([1.0, 4e-8, 3e-3])
 
 
 class _BoxEnv(gym.Env):

@@ -135,7 +135,7 @@ def test_file_trains_in_the_rl_zoo_as_is(algo: str, env_id: str, tmp_path: Path)
     """``python -m rl_zoo3.train -conf agents/hyperparams/<algo>.yml``: a 64-step run on 100-frame tracks; the
     hyperparameters the zoo saved are the ones bboxtune.agents.training.hyperparams reads (with the same overrides)."""
     overrides: dict[str, Any] = TINY[algo]
-    command = [sys.executable, "-m", "rl_zoo3.train", "--algo", algo, "--env", env_id, "--gym-packages", "envs",
+    command = [sys.executable, "-m", "rl_zoo3.train", "--algo", algo, "--env", env_id, "--gym-packages", "bboxtune",
                "-conf", str(HYPERPARAMS_DIR / f"{algo}.yml"), "-n", "64", "-f", str(tmp_path), "--seed", "0",
                "--verbose", "0", "--num-threads", "1", "--eval-freq", "32", "--eval-episodes", "2",
                "--env-kwargs", "track_length:100", "-params", *(f"{k}:{v}" for k, v in overrides.items())]

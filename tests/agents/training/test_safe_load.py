@@ -35,8 +35,8 @@ from bboxtune.agents.training.safe_load import check_env_match, load_model, stam
 
 from ..conftest import ENV_ID, SHORT
 
-SMALL = {"ppo": {"n_steps": 16, "batch_size": 16}, "ppo_lstm": {"n_steps": 16, "batch_size": 16}, "a2c": {"n_steps": 8}, "sac": {"buffer_size": 256},
-         "td3": {"buffer_size": 256}}
+SMALL = {"ppo": {"n_steps": 16, "batch_size": 16}, "ppo_lstm": {"n_steps": 16, "batch_size": 16}, "a2c": {"n_steps": 8},
+         "sac": {"buffer_size": 256}, "td3": {"buffer_size": 256}}
 
 
 class Plant:

@@ -174,10 +174,12 @@ SEQ_HEADER = "sequence,image_folder,n_frames,first_frame\n"
 @pytest.mark.parametrize(
     "file, content, message",
     [
-        ("sequences.csv", "sequence,image_folder,n_frames,first_frame\nCar4,Car4,three,1\n", r"sequences.csv:2: n_frames='three'"),
+        ("sequences.csv", "sequence,image_folder,n_frames,first_frame\nCar4,Car4,three,1\n",
+         r"sequences.csv:2: n_frames='three'"),
         ("sequences.csv", "sequence,image_folder,n_frames,first_frame\nCar4,Car4,3,0\n", r"sequences.csv:2: first_frame=0"),
         ("sequences.csv", "sequence,n_frames\nCar4,3\n", r"sequences.csv:1: header .* lacks column"),
-        ("sequences.csv", "sequence,image_folder,n_frames,first_frame\nCar4,Car4,4,1\n", r"Car4.txt:4: file has 3 boxes, expected 4"),
+        ("sequences.csv", "sequence,image_folder,n_frames,first_frame\nCar4,Car4,4,1\n",
+         r"Car4.txt:4: file has 3 boxes, expected 4"),
         ("sequences.csv", "sequence,image_folder,n_frames,first_frame\nCar4,Car4,3,1\nCar5,Car5,3,1\n",
          r"sequences.csv:3: sequence 'Car5' has no ground-truth file"),
         ("attributes.csv", "sequence,IV\nCar4,2\n", r"attributes.csv:2: attribute IV='2'"),

@@ -37,7 +37,8 @@ def test_env_episodes_are_pure_functions_of_the_seed():
         np.testing.assert_array_equal(ep.truth, alone.truth)
         assert ep.scenario == alone.scenario and ep.scenario["motion"] == "otb"
         # the same seed draws the same ψ, σ_ξ and τ under both models (the motion levels are drawn after them)
-        assert (ep.tau, ep.scenario["psi"], ep.scenario["sigma_xi"]) == (ep_cv.tau, ep_cv.scenario["psi"], ep_cv.scenario["sigma_xi"])
+        assert ((ep.tau, ep.scenario["psi"], ep.scenario["sigma_xi"])
+                == (ep_cv.tau, ep_cv.scenario["psi"], ep_cv.scenario["sigma_xi"]))
         assert not np.allclose(ep.truth, ep_cv.truth)
         np.testing.assert_array_equal(ep.truth[0], ep_cv.truth[0])  # the same first box
     assert not np.allclose(batch[0].truth, batch[1].truth)

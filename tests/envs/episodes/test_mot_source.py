@@ -1,4 +1,5 @@
-"""source="mot": MOT15 identity episodes (bboxtune.envs.episodes.mot_source) on hand-made identities and, with MOT_ROOT, the data."""
+"""source="mot": MOT15 identity episodes (bboxtune.envs.episodes.mot_source) on hand-made identities and, with MOT_ROOT,
+the data."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from bboxtune.envs.episodes.mot_source import STRIDED_MIN_FRAMES, MOTSource, ide
 TRAIN, TEST = "Venice-2", "KITTI-13"  # parts of the OTB split rule (bboxtune.envs.data.mot.split)
 
 
-def identity(sequence: str, ident: int, T: int = 60, fps: float = 30.0, missing: tuple[int, ...] = (0, 1, 7, 8, 9)) -> MOTIdentity:
+def identity(sequence: str, ident: int, T: int = 60, fps: float = 30.0,
+             missing: tuple[int, ...] = (0, 1, 7, 8, 9)) -> MOTIdentity:
     t = np.arange(T, dtype=float)
     truth = np.stack([100 + 3 * t, 50 + t, np.full(T, 20.0), np.full(T, 50.0)], axis=1)
     measured = truth + 0.5

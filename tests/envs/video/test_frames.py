@@ -43,8 +43,8 @@ def test_otb_frames_use_sequences_csv_first_frame_and_ground_truth(tmp_path):
     root = tmp_path / "otb"
     (root / "groundtruth").mkdir(parents=True)
     (root / "groundtruth" / "Toy.txt").write_text("5,6,7,8\n6,6,7,8\n7,6,7,8\n")
-    (root / "sequences.csv").write_text("sequence,video_dir,image_folder,n_frames,first_frame,last_frame,img_name_digits,img_ext\n"
-                                        "Toy,Toy,Toy,3,4,6,4,png\n")
+    (root / "sequences.csv").write_text("sequence,video_dir,image_folder,n_frames,first_frame,last_frame,img_name_digits,"
+                                        "img_ext\nToy,Toy,Toy,3,4,6,4,png\n")
     write_images(tmp_path / "videos" / "Toy" / "img", range(1, 9))
     frames, gt, name = otb_frames(tmp_path / "videos" / "Toy", otb_root=root)
     assert name == "Toy" and [int(f[0, 0, 0]) for f in frames] == [4, 5, 6]
