@@ -42,7 +42,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from bboxtune.filters.base import CHUNK_SAMPLES, Carry, Filter, block_diagonal, coordinate_blocks, not_started
+from bboxtune.filters.base import CHUNK_SAMPLES, Carry, Filter, not_started
+from bboxtune.filters.blocks import block_diagonal, coordinate_blocks
 from bboxtune.filters.model import StateSpaceModel
 from bboxtune.filters.threads import limited_blas
 from bboxtune.filters.validation import check_range

@@ -39,7 +39,8 @@ from typing import Any, ClassVar, cast
 
 import numpy as np
 
-from bboxtune.filters.base import AxisCarry, split_covariance, split_state
+from bboxtune.filters.base import AxisCarry
+from bboxtune.filters.blocks import split_covariance, split_state
 from bboxtune.filters.validation import VALUE_MAX, VARIANCE_MAX, check_prior_scale
 
 WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)  # UPDATE_Z + i: KF-CMN over the i-th gap length

@@ -15,10 +15,9 @@ For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks)
    ``train.py`` trains on; targets >= 20,000 for ufir_cmn, >= 10,000 for kf_cmn), as a ratio to [1] and to
    filterpy's ``KalmanFilter`` loop running the same tracks (``--filterpy-tracks`` of them; tracks/s).
 
-Rates are the best of ``--repeat`` timed blocks (the machine is shared; the best block is the least
-disturbed), with the median in parentheses. Every block draws fresh random actions, so no filter gain comes from the
-cache of an earlier
-block (the fixed rule's gains repeat and are cached, as in training). No unit test asserts on time.
+Rates are the best of ``--repeat`` timed blocks (the machine is shared; the best block is the least disturbed), with
+the median in parentheses. Every block draws fresh random actions, so no filter gain comes from the cache of an
+earlier block (the fixed rule's gains repeat and are cached, as in training). No unit test asserts on time.
 """
 
 from __future__ import annotations

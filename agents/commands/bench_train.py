@@ -9,10 +9,10 @@ Runs, each in a fresh subprocess (so each one's wall time includes its imports a
 2. the peer: stable-baselines3's PPO with its default settings on ``CartPole-v1`` for the same N env steps
    (``PPO("MlpPolicy", "CartPole-v1").learn(N)``): wall seconds;
 
-and prints the ratio train.py / CartPole (goal <= 1.5x) and train.py's wall time (target <= 2 minutes on 2 cores
-for the default 100,000 steps). The learning target (>= 90 % of the oracle's log-ratio on the compare test set) is
-measured by ``python scripts/compare.py --model DIR`` on the run this writes (minutes: the oracle's grid). No
-unit test asserts on time.
+and prints the ratio train.py / CartPole (goal <= 1.5x) and train.py's wall time (target <= 2 minutes on 2 cores for
+the default 100,000 steps). The learning target (>= 90 % of the oracle's log-ratio on the compare test set) is
+measured by ``python scripts/compare.py --model DIR`` on the run this writes (minutes: the oracle's grid). No unit
+test asserts on time.
 """
 
 from __future__ import annotations

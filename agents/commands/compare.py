@@ -5,11 +5,11 @@
     python scripts/compare.py --model RUN --env-kwargs source=otb_tracker "trackers=[SiamRPN++, CFNet, STRUCK, MDNet]"
     python scripts/compare.py --model runs/ppo_s0 runs/ppo_s1 runs/ppo_s2 --out runs/ppo_seeds   # across training seeds
 
-The env: the run's own (config.yml's env id and env_kwargs) unless --env / --env-kwargs KEY=VALUE ... change it
-(any bboxtune.envs.episodes.config.EnvConfig field, YAML values, KEY:VALUE also accepted, split at the first = or :;
-checked before
-any work). The model must fit the evaluation env: equal observation and action spaces and actions that set the
-same parameters of the same back end (bboxtune.agents.training.safe_load.check_env_match); everything else may differ (transfer).
+The env: the run's own (config.yml's env id and env_kwargs) unless --env / --env-kwargs KEY=VALUE ... change it (any
+bboxtune.envs.episodes.config.EnvConfig field, YAML values, KEY:VALUE also accepted, split at the first = or :;
+checked before any work). The model must fit the evaluation env: equal observation and action spaces and actions that
+set the same parameters of the same back end (bboxtune.agents.training.safe_load.check_env_match); everything else may
+differ (transfer).
 
 Episodes (agents/splits.py): --split (default test) and --seed choose them, the same seed always the same
 episodes. sim / video: --episodes N noise seeds of the split (seed 0: episodes 0 .. N-1, today's fixed test set;
@@ -19,19 +19,17 @@ output has no noise seed). --seed also seeds the baselines' training episodes, O
 bootstrap.
 
 Methods (bboxtune.agents.policies.baselines, bboxtune.agents.policies.adaptive): raw (the measurements themselves, no
-filter; a frame without a
-measurement is scored as a missing estimate: a failure for success AUC / precision, left out of the RMSE),
-bytetrack_kf and sort_kf (the box filters ByteTrack / DeepSORT and SORT ship, published settings), rule
+filter; a frame without a measurement is scored as a missing estimate: a failure for success AUC / precision, left out
+of the RMSE), bytetrack_kf and sort_kf (the box filters ByteTrack / DeepSORT and SORT ship, published settings), rule
 (bytetrack_kf: stock ByteTrack), rule_est_sigma, rule_true_sigma (sim only; neither for bytetrack_kf), oracle
 (per-episode search maximising the env's reward with the truth), oracle_auc (maximising success AUC; oracle_rmse,
-minimising RMSE, when the reward is not RMSE), global, amortised, adaptive, the trained model (named by its
-algorithm, e.g. ppo) and its best-on-validation checkpoint (<algo>_best); with --gate also each final model gated
-(<algo>_gated, bboxtune.agents.evaluation.gate: its action where a ridge regressor predicts that it beats the raw
-measurements by more
-than a margin chosen on val episodes; elsewhere the measurements left alone, scored as raw; each fitted gate is
-written to gates/<name>.json, for smooth.py --gate). All methods see the same episodes (common random numbers);
-global and amortised are fitted on train-split episodes of the evaluation env, the gates on train- and val-split
-episodes of the run's own env (so a transfer evaluation stays one).
+minimising RMSE, when the reward is not RMSE), global, amortised, adaptive, the trained model (named by its algorithm,
+e.g. ppo) and its best-on-validation checkpoint (<algo>_best); with --gate also each final model gated (<algo>_gated,
+bboxtune.agents.evaluation.gate: its action where a ridge regressor predicts that it beats the raw measurements by
+more than a margin chosen on val episodes; elsewhere the measurements left alone, scored as raw; each fitted gate is
+written to gates/<name>.json, for smooth.py --gate). All methods see the same episodes (common random numbers); global
+and amortised are fitted on train-split episodes of the evaluation env, the gates on train- and val-split episodes of
+the run's own env (so a transfer evaluation stays one).
 
 Runs of bboxtune/FilterRetune-v0 (re-tuning every window) are scored by bboxtune.agents.evaluation.retune_eval
 instead: raw, rule (every
@@ -63,22 +61,20 @@ after its observation) and regime_oracle (in each window of a true regime state 
 state's windows, with the truth) (bboxtune.agents.evaluation.regime_informed): references that use the truth, for how much of the
 one-shot → per-window gap knowing the regimes reaches.
 
-Writes to --out (default RUN_DIR/compare; a new or empty folder, nothing is overwritten): results.csv (one
-row per method × episode: method, episode, sequence, tracker, rmse, success_auc, precision20, …; sequence and
-tracker empty for sim), summary.md (tables with 95 % bootstrap CIs that resample sequences — an OTB sequence or
-a synthetic video with all its episodes — and simulated episodes, each its own cluster; sources other than sim
-add success AUC / precision against raw and rule, OTB sources per-attribute deltas and, for otb_tracker, rows
-per tracker), gain_boxplot.png, otb_curves.png,
-trajectory.png; with several --model (runs of one algorithm and env, distinct seeds) every model is
-scored on the same episodes as <algo>_s<seed> / <algo>_best_s<seed> beside one set of baselines, and summary.md
-adds their IQM and mean across seeds with stratified bootstrap CIs (rliable's estimator, bboxtune.agents.evaluation.seeds_report)
-and, for FilterTune-v0 runs, performance_profile.png. The run's models are loaded without unpickling anything and
-checked against its config.yml (bboxtune.agents.training.safe_load) and against the evaluation env before any baseline is fitted;
-an input that never varied in a model's training is held at its training value
-(bboxtune.agents.training.runs.hold_constant_features)
-and summary.md names those inputs;
-an old run whose statistics are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can
-run code: only for runs you trust). Bad arguments or run files: one line naming them, exit status 2.
+Writes to --out (default RUN_DIR/compare; a new or empty folder, nothing is overwritten): results.csv (one row per
+method × episode: method, episode, sequence, tracker, rmse, success_auc, precision20, …; sequence and tracker empty
+for sim), summary.md (tables with 95 % bootstrap CIs that resample sequences — an OTB sequence or a synthetic video
+with all its episodes — and simulated episodes, each its own cluster; sources other than sim add success AUC /
+precision against raw and rule, OTB sources per-attribute deltas and, for otb_tracker, rows per tracker),
+gain_boxplot.png, otb_curves.png, trajectory.png; with several --model (runs of one algorithm and env, distinct seeds)
+every model is scored on the same episodes as <algo>_s<seed> / <algo>_best_s<seed> beside one set of baselines, and
+summary.md adds their IQM and mean across seeds with stratified bootstrap CIs (rliable's estimator,
+bboxtune.agents.evaluation.seeds_report) and, for FilterTune-v0 runs, performance_profile.png. The run's models are
+loaded without unpickling anything and checked against its config.yml (bboxtune.agents.training.safe_load) and against
+the evaluation env before any baseline is fitted; an input that never varied in a model's training is held at its
+training value (bboxtune.agents.training.runs.hold_constant_features) and summary.md names those inputs; an old run
+whose statistics are only in vecnormalize.pkl is refused unless --trust-pickle is given (pickles can run code: only
+for runs you trust). Bad arguments or run files: one line naming them, exit status 2.
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
-"""The FilterRetune-v0 part of ``scripts/compare.py``: the re-tuning methods
-(bboxtune.agents.evaluation.retune_eval), the per-window
-regressors it fits (bboxtune.agents.evaluation.window_regressor, ``--fit-seeds``; anchored at the one-shot model with
-its margin chosen on
-val episodes, ``--val-episodes`` / ``--anchor-margin``), the one-shot model it loads (``--oneshot-model``), and
-the summary with the one-shot → per-window gap (bboxtune.agents.evaluation.report_retune), and the flags only these
-comparisons take
-(:func:`add_retune_arguments`, :func:`check_retune_flags`, :func:`check_regime_source`). compare.py parses the arguments."""
+"""The FilterRetune-v0 part of ``scripts/compare.py``: the re-tuning methods (bboxtune.agents.evaluation.retune_eval),
+the per-window regressors it fits (bboxtune.agents.evaluation.window_regressor, ``--fit-seeds``; anchored at the
+one-shot model with its margin chosen on val episodes, ``--val-episodes`` / ``--anchor-margin``), the one-shot model
+it loads (``--oneshot-model``), and the summary with the one-shot → per-window gap
+(bboxtune.agents.evaluation.report_retune), and the flags only these comparisons take (:func:`add_retune_arguments`,
+:func:`check_retune_flags`, :func:`check_regime_source`). compare.py parses the arguments."""
 
 from __future__ import annotations
 

@@ -4,14 +4,13 @@
 
 Loads the MOT15 identity episodes (:mod:`bboxtune.envs.data.mot`, ``--mot-root`` else ``$MOT_ROOT``), fits
 ``bboxtune/FilterTune-v0`` kwargs of a "sim" env to the train split
-(:func:`bboxtune.agents.evaluation.mot_fit.fit_sim_kwargs`, whose
-docstring gives every choice), draws ``--episodes`` episodes of that env (noise seeds ``--seed`` …) and measures
-them like the MOT identities (:func:`bboxtune.agents.evaluation.mot_fit.measure_sim`). Writes into ``--out`` (created; an existing
-folder must not hold these files), each atomically: ``fit.md`` (the table statistic | MOT train | MOT val |
-MOT test | fitted sim, the fitted kwargs as a ``scripts/train.py --env-kwargs`` line, the command),
-``fitted_env_kwargs.json`` (the kwargs of ``gym.make``) and ``fit.png`` (x-centre error / h, per-identity lag-1
-correlation and miss rate, missed-run lengths: MOT train vs fitted sim). A bad flag, folder or data file ends
-the run with exit status 2 and one line naming it.
+(:func:`bboxtune.agents.evaluation.mot_fit.fit_sim_kwargs`, whose docstring gives every choice), draws ``--episodes``
+episodes of that env (noise seeds ``--seed`` …) and measures them like the MOT identities
+(:func:`bboxtune.agents.evaluation.mot_fit.measure_sim`). Writes into ``--out`` (created; an existing folder must not
+hold these files), each atomically: ``fit.md`` (the table statistic | MOT train | MOT val | MOT test | fitted sim, the
+fitted kwargs as a ``scripts/train.py --env-kwargs`` line, the command), ``fitted_env_kwargs.json`` (the kwargs of
+``gym.make``) and ``fit.png`` (x-centre error / h, per-identity lag-1 correlation and miss rate, missed-run lengths:
+MOT train vs fitted sim). A bad flag, folder or data file ends the run with exit status 2 and one line naming it.
 """
 
 from __future__ import annotations

@@ -2,12 +2,12 @@
 
     python scripts/otb_motion.py --otb-root ../shared/data/otb --out docs [--tracks 300] [--seed 0]
 
-Writes ``otb_motion.json`` (the fitted :class:`bboxtune.envs.data.sim_motion.OTBMotion` parameters and every statistic) and
-``otb_motion.md`` (tables) to ``--out``, atomically. Conventions: 30 frames/s (OTB has no time stamps);
-centre (cx, cy) increments divided by the box scale s = √(w h) of the earlier frame (box scales per frame,
-÷ τ: per second); x and y pooled; log w and log h pooled. Only the train split (``bboxtune.envs.data.otb.split``) is fitted;
-val and test are reported. Simulated tracks are scored like the ground truth after rounding the true boxes
-to integers (OTB boxes are integers), at τ = 1/30 s and 500 frames.
+Writes ``otb_motion.json`` (the fitted :class:`bboxtune.envs.data.sim_motion.OTBMotion` parameters and every
+statistic) and ``otb_motion.md`` (tables) to ``--out``, atomically. Conventions: 30 frames/s (OTB has no time stamps);
+centre (cx, cy) increments divided by the box scale s = √(w h) of the earlier frame (box scales per frame, ÷ τ: per
+second); x and y pooled; log w and log h pooled. Only the train split (``bboxtune.envs.data.otb.split``) is fitted;
+val and test are reported. Simulated tracks are scored like the ground truth after rounding the true boxes to integers
+(OTB boxes are integers), at τ = 1/30 s and 500 frames.
 """
 
 from __future__ import annotations

@@ -10,19 +10,16 @@ N = N_opt; :mod:`bboxtune.envs.episodes.video_source`) or, with ``--tuned MODEL`
 directory), the tuner's choice; ``--compensate`` estimates the camera motion from the frames and compensates
 it (:mod:`bboxtune.envs.video.camera`; UKF: [Raj-UKF] eq. 17, other back ends: camera-velocity input, eq. 18).
 
-Writes to ``--out`` (a new or empty folder, nothing is overwritten; default ``runs/track_video/<name>`` with
-name ``synthetic-<seed>``, the video's stem or the sequence): ``frames.csv`` (per frame: raw and filtered x, y, w, h
-[and ground truth, IoUs]),
-``summary.json`` (``raw_success_auc``, ``filtered_success_auc``, precision@20 px and the (cx, cy, w, h) RMSE
-over the frames with a detection when ground truth is known, ``n_frames``, ``n_missing``, parameters), and
-``video.mp4`` (truth green, detection red, filtered blue; ``strip.png`` of 8 frames instead if no MP4 codec is
-available). All files are written atomically.
-Box coordinates: 0-based for ``--synthetic`` / ``--video``; 1-based OTB coordinates for ``--frames``
-(``--init`` is read in the same convention).
-Arguments are checked before any frame is read: a bad one gives one line naming it (exit status 2). A
-``train.py`` run directory given to ``--tuned`` is loaded without unpickling anything (``bboxtune.agents.training.safe_load``);
-an old run whose statistics are only in ``vecnormalize.pkl`` needs ``--trust-pickle`` (pickles can run code:
-only for runs you trust).
+Writes to ``--out`` (a new or empty folder, nothing is overwritten; default ``runs/track_video/<name>`` with name
+``synthetic-<seed>``, the video's stem or the sequence): ``frames.csv`` (per frame: raw and filtered x, y, w, h [and
+ground truth, IoUs]), ``summary.json`` (``raw_success_auc``, ``filtered_success_auc``, precision@20 px and the (cx,
+cy, w, h) RMSE over the frames with a detection when ground truth is known, ``n_frames``, ``n_missing``, parameters),
+and ``video.mp4`` (truth green, detection red, filtered blue; ``strip.png`` of 8 frames instead if no MP4 codec is
+available). All files are written atomically. Box coordinates: 0-based for ``--synthetic`` / ``--video``; 1-based OTB
+coordinates for ``--frames`` (``--init`` is read in the same convention). Arguments are checked before any frame is
+read: a bad one gives one line naming it (exit status 2). A ``train.py`` run directory given to ``--tuned`` is loaded
+without unpickling anything (``bboxtune.agents.training.safe_load``); an old run whose statistics are only in
+``vecnormalize.pkl`` needs ``--trust-pickle`` (pickles can run code: only for runs you trust).
 """
 
 from __future__ import annotations
