@@ -12,7 +12,7 @@ Every script validates its whole command line before it does any work or writes 
   ``nan``/``inf``); :func:`existing_file`,
   :func:`existing_dir`, :func:`out_dir` (a folder that exists and is writable, or can be created; nothing
   is created here), :func:`json_file`, :func:`yaml_file` (parsed; errors name ``file:line:column``),
-  :func:`box_xywh` (``x,y,w,h`` with w, h > 0).
+  :func:`box_xywh` (``x,y,w,h`` with w, h > 0, \\|x\\|, \\|y\\|, w, h <= 1e7 px).
 * :func:`bboxtune.agents.readers.read_json`, :func:`~bboxtune.agents.readers.read_yaml` — the same readers for
   files a script finds itself (ValueError naming ``file:line:column``); :func:`argument_errors` turns the ValueError
   / OSError of a semantic check
@@ -36,6 +36,7 @@ from typing import Any, NoReturn
 import yaml
 
 from bboxtune.agents.readers import read_json, read_yaml
+from bboxtune.envs.data.boxes import COORD_RULE, MAX_COORD
 from bboxtune.envs.data.number_grammar import parse_float, parse_int, shorten
 from bboxtune.envs.data.otb import TRACKER_SPLIT
 
@@ -242,10 +243,11 @@ yaml_file = _document(read_yaml)
 
 
 def box_xywh(text: str) -> tuple[float, float, float, float]:
-    """``type=`` for a box ``x,y,w,h`` in px: four finite numbers, w > 0 and h > 0."""
+    """``type=`` for a box ``x,y,w,h`` in px: four finite numbers, w > 0 and h > 0, none beyond ``MAX_COORD`` (1e7)."""
     parts = [p.strip() for p in text.split(",", 4)] if len(text) <= 400 else []
     values = [v for v in (_finite(p) for p in parts) if v is not None] if len(parts) == 4 else []  # 4: all finite
-    if len(values) != 4 or values[2] <= 0 or values[3] <= 0:
-        raise argparse.ArgumentTypeError(f"invalid box {shorten(text)}; allowed: x,y,w,h (px), finite, w > 0, h > 0")
+    if len(values) != 4 or values[2] <= 0 or values[3] <= 0 or max(map(abs, values)) > MAX_COORD:
+        raise argparse.ArgumentTypeError(f"invalid box {shorten(text)}; allowed: x,y,w,h (px), finite, w > 0, h > 0, "
+                                         f"{COORD_RULE}")
     x, y, w, h = values
     return x, y, w, h

@@ -14,6 +14,7 @@ from bboxtune.envs.episodes.features import FEATURE_NAMES, WINDOW_FEATURE_NAMES,
 from bboxtune.envs.episodes.scoring import (
     SCORE_KEYS,
     box_model,
+    check_candidates,
     detections,
     hold_missing,
     reward_from,
@@ -95,7 +96,8 @@ class FilterRetuneEnv(TrackEnv):
     +0.41 — it optimised the mean of window ratios, not the track's RMSE). The filter state carries over, so an
     action also shapes later windows' rewards — train with discounting across windows
     (``agents/hyperparams/ppo.yml``: γ = 0.95, λ = 0.9). ``score_rest(actions)`` scores actions held to the
-    track's end (one-shot tuning from here on), ``score(actions)`` the current window only; ``estimates`` are
+    track's end (one-shot tuning from here on), ``score(actions)`` the current window only (both refuse a batch
+    whose scoring would not fit in the available memory, ``bboxtune.envs.data.memory``); ``estimates`` are
     the boxes filtered so far, ``rule_estimates`` the rule's, ``window_start`` the next window's first frame, and
     ``features_so_far()`` the FilterTune-v0 observation of the frames filtered so far (what a one-shot tuner would
     see if the track ended there).
@@ -249,6 +251,7 @@ class FilterRetuneEnv(TrackEnv):
         if self.episode is None or self._start >= len(self.episode.y):
             raise RuntimeError("no window to score: call reset()")
         params = self.action_map.to_params(actions, self.episode.nominal)
+        self._check_candidates(len(params["horizon"]), self._window_bounds()[1])
         est, _ = self._run_window(params, self._broadcast_carry(len(params["horizon"])))
         return self._score_window(est, params, *self._window_bounds())
 
@@ -264,6 +267,7 @@ class FilterRetuneEnv(TrackEnv):
             raise RuntimeError("no window to score: call reset()")
         params = self.action_map.to_params(np.atleast_2d(actions), self.episode.nominal)
         end = len(self.episode.y)
+        self._check_candidates(len(params["horizon"]), end)
         est, _ = self._run_window(params, self._broadcast_carry(len(params["horizon"])), end)
         return self._score_window(est, params, self._start, end)
 
@@ -302,6 +306,12 @@ class FilterRetuneEnv(TrackEnv):
 
     def _broadcast_carry(self, n: int) -> Any:
         return None if self._carry is None else self._carry.repeat(n)
+
+    def _check_candidates(self, n: int, end: int) -> None:
+        """Refuse ``n`` candidates on the frames from the window's start to ``end`` whose scoring would not fit in the
+        available memory (``scoring.check_candidates``; "track" rewards score from the end of the warm-up)."""
+        first = min(self.config.window, self._start) if self.config.retune_reward == "track" else self._start
+        check_candidates(self.config.backend, n, end - first)
 
     def _score_window(self, est: np.ndarray, params: dict[str, np.ndarray], start: int, end: int) -> dict[str, Any]:
         truth = cast(Episode, self.episode).truth[start:end]

@@ -11,6 +11,7 @@ from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.features import measurement_features
 from bboxtune.envs.episodes.scoring import (
     SCORE_KEYS,
+    check_candidates,
     reference_scores,
     reward_from,
     run_positions,
@@ -63,7 +64,8 @@ class FilterTuneEnv(TrackEnv):
     exactly one action of shape (d,): any other shape (a batch (A, d) included) raises ``ValueError``, as do
     NaN/inf entries and entries outside [-1, 1] (entries within 1e-6 of it are accepted as float32
     round-off and clipped — nothing else is clipped); a non-numeric or bool dtype raises ``TypeError``.
-    ``env.unwrapped.score(actions)`` takes a batch (A, d), A >= 1, with the same checks.
+    ``env.unwrapped.score(actions)`` takes a batch (A, d), A >= 1, with the same checks, and refuses one whose
+    scoring would not fit in the available memory (``bboxtune.envs.data.memory``).
 
     "Trust the measurement" (no smoothing) is an action for every back end: N = 2 (a = -1), σ_w at the top
     (+1), σ_v at the bottom (-1), ψ = 0 (-1) for ``ufir_cmn`` and ψ = 0.99 (+1) for ``kf_cmn``. The estimates
@@ -320,10 +322,13 @@ class FilterTuneEnv(TrackEnv):
         """Score actions (A, d) on the current episode in one vectorised filter run.
 
         Returns ``reward``, ``rmse``, ``iou_mean``, ``success_auc``, ``precision20``, ``iou_precision``
-        (arrays (A,)) and ``params`` (dict of arrays (A,)); equal to what :meth:`step` returns per action."""
+        (arrays (A,)) and ``params`` (dict of arrays (A,)); equal to what :meth:`step` returns per action. A
+        batch whose scoring would not fit in the available memory (``scoring.check_candidates``: A × T × a few
+        hundred bytes) raises ``bboxtune.envs.data.memory.MemoryLimitError``, a ``ValueError``, before any filter runs."""
         if self.episode is None:
             raise RuntimeError("call reset() before score()")
         params = self.action_map.to_params(actions, self.episode.nominal)
+        check_candidates(self.config.backend, len(params["horizon"]), len(self.episode.y))
         est = run_positions(self.config.backend, self.episode.y, self.episode.tau, params)
         scores = score_estimates(est, self.episode.truth)
         return {"reward": reward_from(scores, self._rule["reference"], self.config.reward), **scores,

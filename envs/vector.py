@@ -20,6 +20,10 @@ generator (seeded by ``reset(seed=...)``), n at a time, through ``noise_seeds(rn
 [0, 2⁶²) like the env's own draws (``bboxtune.agents.splits.train_seeds`` for the train split in training). Pinned
 episodes (reset options) are the single env's job; ``render_mode`` is not supported.
 
+Memory: a batch holds n episodes at once, so ``n_envs`` is bounded by the machine's available memory, not by a
+fixed cap — :class:`TuneBatch` refuses (``bboxtune.envs.data.memory.MemoryLimitError``, a ``ValueError`` with the
+estimate) when :func:`batch_bytes` of ``n_envs`` episodes of the source's longest length exceeds it.
+
 >>> from bboxtune import envs
 >>> venv = envs.make_vec("bboxtune/FilterTune-v0", 4, backend="ufir_cmn", track_length=200)
 >>> obs, infos = venv.reset(seed=0)
@@ -40,12 +44,24 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from bboxtune.envs.data.memory import check_fits
 from bboxtune.envs.episodes.scoring import SCORE_KEYS, reward_from, run_tracks, score_tracks
 from bboxtune.envs.tune_env import FilterTuneEnv
 
 TUNE_ID = "bboxtune/FilterTune-v0"
 BATCHED_IDS = (TUNE_ID,)  # env ids with a batched vector env
 NoiseSeeds = Callable[[np.random.Generator, int], np.ndarray]
+# Memory of one episode of a batch, peak over a cycle (construction, reset, step, reset): its arrays (measurements,
+# truth, the rule's and the action's estimates, features, scores) per frame and the Python objects around it
+# (tracemalloc, sim episodes of kf_cmn, the most of the back ends: 10 kB per 10-frame episode, 390 B per frame at
+# 1000 frames, 350 B at 5000; the estimate is 1.2-1.3 times these, tests/envs/test_memory.py)
+EPISODE_FRAME_BYTES = 450
+EPISODE_BYTES = 8192
+
+
+def batch_bytes(n_episodes: int, n_frames: int) -> int:
+    """Estimated memory (bytes) of ``n_episodes`` episodes of at most ``n_frames`` frames prepared and scored at once."""
+    return n_episodes * (EPISODE_BYTES + EPISODE_FRAME_BYTES * n_frames)
 
 
 def any_noise_seeds(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -56,7 +72,8 @@ def any_noise_seeds(rng: np.random.Generator, n: int) -> np.ndarray:
 class TuneBatch:
     """n FilterTune-v0 episodes at once: :meth:`reset` draws and prepares n new tracks, :meth:`step` scores one
     action per track. ``env_kwargs`` are ``gym.make``'s (``bboxtune.envs.episodes.config.EnvConfig`` fields), checked the same
-    way; ``self.env`` is the single env whose configuration, source and rule the batch uses."""
+    way; ``self.env`` is the single env whose configuration, source and rule the batch uses. ``n_envs`` whose
+    :func:`batch_bytes` exceed the available memory raise ``MemoryLimitError`` (module docstring)."""
 
     def __init__(self, n_envs: int, noise_seeds: NoiseSeeds = any_noise_seeds, **env_kwargs: Any) -> None:
         if isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1:
@@ -65,6 +82,8 @@ class TuneBatch:
             raise TypeError("render_mode: not supported by the batched env (render a single env)")
         self.env = FilterTuneEnv(**env_kwargs)
         self.n_envs = int(n_envs)
+        frames = self.env.source.max_frames()
+        check_fits(batch_bytes(self.n_envs, frames), f"n_envs={self.n_envs} (episodes of up to {frames} frames at once)")
         self.noise_seeds = noise_seeds
         self.rng = np.random.default_rng()
         self.prepared: list[tuple[Any, dict[str, Any], np.ndarray]] = []

@@ -111,8 +111,10 @@ from bboxtune.agents.commands.compare_retune import (
     no_run_config,
 )
 from bboxtune.agents.evaluation.evaluate import (
+    MAX_BASELINES,
     OTB_SOURCES,
     BaselineSettings,
+    check_evaluation_memory,
     evaluate,
     evaluation_episodes,
     fit_baselines,
@@ -130,6 +132,7 @@ from bboxtune.agents.training.run_files import RunError
 from bboxtune.agents.training.runs import ENV_ERRORS, SB3Policy, check_free, describe_held_features, load_config, make_env
 from bboxtune.agents.training.safe_load import check_env_match
 from bboxtune.envs.data.atomic_files import write_text_atomic
+from bboxtune.envs.data.memory import MemoryLimitError
 from bboxtune.envs.episodes.config import EnvConfig
 
 if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
@@ -234,9 +237,9 @@ def env_flags(args: argparse.Namespace) -> str:
     return "/".join(flag for flag, given in (("--env-kwargs", args.env_kwargs), ("--trackers", args.trackers)) if given)
 
 
-def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env) -> list[EpisodeSpec]:
+def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env, n_runs: int) -> list[EpisodeSpec]:
     """The episodes to score (bboxtune.agents.evaluation.evaluate.evaluation_episodes), after checking the flags that
-    choose them."""
+    choose them, and that scoring them (the baselines and up to 3 methods per run of ``n_runs``) fits in memory."""
     source = cast("TrackEnv", env.unwrapped).config.source
     k = args.seeds_per_sequence
     if source in OTB_SOURCES and args.episodes is not None:
@@ -247,6 +250,15 @@ def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env)
                      f"{'one episode per sequence × tracker' if source == 'otb_tracker' else 'use --episodes'})")
     n = (args.episodes or DEFAULT_EPISODES) if source not in OTB_SOURCES else None
     k = (k or DEFAULT_SEEDS_PER_SEQUENCE) if source == "otb" else None
+    chosen = (n, f"--episodes {n}") if n is not None else None  # otb_tracker: one per sequence × tracker, not chosen
+    if k is not None:
+        chosen = (len(cast("OTBSource", cast("TrackEnv", env.unwrapped).source).sequences) * k, f"--seeds-per-sequence {k}")
+    if chosen is not None:
+        count, flag = chosen
+        try:
+            check_evaluation_memory(count, MAX_BASELINES + 3 * n_runs, args.bootstrap, flag)
+        except MemoryLimitError as err:
+            parser.error(str(err))
     return evaluation_episodes(env, args.split, episodes=n, seeds_per_sequence=k, seed=args.seed)
 
 
@@ -331,7 +343,7 @@ def run(argv: list[str] | None = None) -> Path:
         except ENV_ERRORS as err:
             raise RunError(f"{env_flags(args) or '--model'}: env {env_id} {env_kwargs} cannot be built "
                            f"({' '.join(str(err).split())})") from None
-        episodes = episode_plan(parser, args, test_env)
+        episodes = episode_plan(parser, args, test_env, len(runs))
         if len(runs) > 1:
             learned, groups = load_seed_runs(runs, cfg, test_env, args.trust_pickle)
         elif runs:

@@ -61,6 +61,7 @@ from bboxtune.agents.evaluation.plots import learning_curve
 from bboxtune.agents.training.algos import ALGOS, algo_class
 from bboxtune.agents.training.callbacks import AtomicCheckpoint, EpisodeLog, SaveBest, restore_eval_state
 from bboxtune.agents.training.checkpoints import Checkpoint, newest_complete
+from bboxtune.agents.training.footprint import check_training_memory
 from bboxtune.agents.training.hyperparams import VEC_ENVS, Hyperparams, constructor_kwargs, load_hyperparams
 from bboxtune.agents.training.run_files import (
     PICKLED_REPLAY,
@@ -86,6 +87,7 @@ from bboxtune.agents.training.runs import (
 )
 from bboxtune.agents.training.safe_load import load_model, stamp
 from bboxtune.envs.data.atomic_files import atomic_write, write_text_atomic
+from bboxtune.envs.data.memory import MemoryLimitError
 from bboxtune.envs.data.otb import TRACKER_SPLIT
 from bboxtune.envs.episodes.actions import BACKENDS
 from bboxtune.envs.episodes.config import SOURCES, EnvConfig
@@ -111,7 +113,9 @@ def build_parser() -> ArgumentParser:
                         "of agents/hyperparams/<algo>.yml; with --resume: the total to reach (>= the steps done), "
                         "default the run's previous target")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the model, the envs and the train split")
-    p.add_argument("--n-envs", type=positive_int, default=None, help="parallel training envs (default: the YAML's n_envs)")
+    p.add_argument("--n-envs", type=positive_int, default=None,
+                   help="parallel training envs (default: the YAML's n_envs; at most what fits in this machine's available "
+                        "memory with the rollout or replay buffer)")
     p.add_argument("--vec", choices=VEC_ENVS, default=None,
                    help="how the training envs run: batched (FilterTune-v0: all in one vectorised batch, this process), "
                         "subproc (one process each) or dummy (one after another, this process); default: the YAML's "
@@ -208,18 +212,23 @@ def hyperparams_of(cfg: dict[str, Any], where: str) -> Hyperparams:
         raise RunError(f"{where}: {err}") from None
 
 
-def validated_envs(cfg: dict[str, Any], hp: Hyperparams, where: str) -> VecEnv:
+def validated_envs(cfg: dict[str, Any], hp: Hyperparams, where: str, sizes: str) -> VecEnv:
     """What the worker processes will build, built here first: one env of the train and of the val split (each
     reset once) and the ``n_envs`` training envs (in this process: batched or DummyVecEnv), which are returned.
-    :class:`RunError` naming ``where`` (the flags or the config file) if any of it fails."""
+    :class:`RunError` naming ``where`` (the flags or the config file) if any of it fails, or ``sizes`` (where n_envs
+    and the buffer's size are set) if the run would not fit in memory (``bboxtune.agents.training.footprint``)."""
     env_id, kwargs = cfg["env_id"], cfg["env_kwargs"]
     try:
         for split in ("train", "val"):
             env = make_env(env_id, kwargs, split=split)
             env.reset(seed=int(cfg["seed"]))
             env.close()
+            if split == "train":
+                check_training_memory(hp, env)
         return make_vec(env_id, kwargs, split="train", n_envs=hp.n_envs, seed=int(cfg["seed"]),
                         vec_env="batched" if hp.vec_env == "batched" else "dummy")
+    except MemoryLimitError as err:
+        raise RunError(f"{sizes}: {err}") from None
     except ENV_ERRORS as err:
         why = " ".join(str(err).split()).split(" was raised from the environment creator")[0]  # gymnasium's suffix
         raise RunError(f"{where}: env {env_id} with {kwargs}: {why}") from None
@@ -315,7 +324,8 @@ def prepare_new(args: argparse.Namespace) -> tuple[dict[str, Any], Hyperparams, 
     check_free(run_dir)
     hp = hyperparams_of(cfg, "--hyperparams")
     check_tensorboard(cfg)
-    venv = validated_envs(cfg, hp, "--env / --env-kwargs / --backend / --source / --reward / --trackers")
+    venv = validated_envs(cfg, hp, "--env / --env-kwargs / --backend / --source / --reward / --trackers",
+                          "--n-envs / --hyperparams")
     check_new_model(cfg, hp, venv, f"--hyperparams / agents/hyperparams/{cfg['algo']}.yml")
     venv.close()
     return cfg, hp, run_dir, claim_run_dir(run_dir)
@@ -331,7 +341,7 @@ def prepare_resume(args: argparse.Namespace) -> tuple[dict[str, Any], Hyperparam
     try:
         hp = hyperparams_of(cfg, where)
         check_tensorboard(cfg)
-        venv = validated_envs(cfg, hp, where)
+        venv = validated_envs(cfg, hp, where, where)
         checkpoint = newest_complete(run_dir, checkpoint_check(cfg, hp, venv, args.trust_pickle))
         venv.close()
         done = checkpoint.num_timesteps if checkpoint is not None else 0

@@ -48,6 +48,7 @@ from bboxtune.agents.policies.baselines import (
 from bboxtune.agents.splits import EpisodeSpec, otb_episodes, split_seeds, train_seeds
 from bboxtune.envs.data import metrics
 from bboxtune.envs.data.boxes import cxcywh_to_xywh
+from bboxtune.envs.data.memory import check_fits
 from bboxtune.envs.episodes.actions import parameter_family
 from bboxtune.envs.episodes.scoring import detections, score_estimates
 
@@ -64,6 +65,14 @@ ADAPTIVE_TRUTH = "n"
 DEFAULT_ADAPTIVE = SageHusaConfig()  # the adaptive KF's default settings (frozen: one shared instance)
 OTB_SOURCES = ("otb", "otb_tracker")  # sources whose test episodes are enumerated, not drawn
 TRUE_KEYS = ("psi", "sigma_w", "sigma_xi", "sigma_rel", "tau")  # the true scenario, for analysis (true_<key>)
+# Memory an evaluation keeps per episode (tracemalloc over the records of 13 methods, results.csv and summary.md: 91 kB
+# per episode with 2000 bootstrap resamples, 32 kB with 200): its spec and noise seed, per method its record and the
+# summary's copies of it (~2.2 kB) and per bootstrap resample its index and the resampled statistics (~31 B), each
+# with a margin (the estimate is 1.1-1.2 times the peak: tests/agents/evaluation/test_evaluation_memory.py)
+SPEC_BYTES = 128
+MAX_BASELINES = 11  # methods besides the learned ones: raw, the two PEERS, adaptive, <= 5 standard_policies, 2 fitted
+RECORD_BYTES = 2500
+RESAMPLE_BYTES = 36
 
 
 @dataclass(frozen=True)
@@ -129,6 +138,14 @@ def evaluation_episodes(env: gym.Env, split: str, *, episodes: int | None, seeds
     outputs = {t: set(pool.sequences_of(t)) for t in pool.trackers}
     return otb_episodes(pool.sequences, pool.trackers, split, seed=seed,
                         has_output=lambda tracker, sequence: sequence in outputs[tracker])
+
+
+def check_evaluation_memory(n_episodes: int, n_methods: int, n_boot: int, what: str) -> None:
+    """``bboxtune.envs.data.memory.MemoryLimitError`` (a ``ValueError`` starting with ``what``, the request) when scoring
+    ``n_methods`` methods on ``n_episodes`` episodes and summarising them with ``n_boot`` bootstrap resamples would
+    need more memory than this machine has available."""
+    check_fits(n_episodes * (SPEC_BYTES + n_methods * RECORD_BYTES + n_boot * RESAMPLE_BYTES),
+               f"{what} ({n_episodes} episodes × {n_methods} methods, {n_boot} bootstrap resamples)")
 
 
 def val_episodes(env: gym.Env, n: int, seeds_per_sequence: int = 1) -> list[EpisodeSpec]:

@@ -9,8 +9,9 @@ smoothed with them.
     tuner = Tuner.from_run("runs/ppo_ufir_cmn_sim_s0")
     params, smoothed = tuner.tune(boxes, 1 / 30), tuner.smooth(boxes, 1 / 30)
 
-Conventions: ``boxes`` is (T, 4) x, y (top-left corner), w, h in px (OTB's xywh) with w, h > 0; a row of NaN is
-a missing frame (a partly NaN row, ±inf, or w, h <= 0 is an error). ``tau`` is the frame interval in s, in
+Conventions: ``boxes`` is (T, 4) x, y (top-left corner), w, h in px (OTB's xywh) with w, h > 0 and \\|x\\|, \\|y\\|,
+w, h <= 1e7 px (:data:`bboxtune.envs.data.boxes.MAX_COORD`); a row of NaN is a missing frame (a partly NaN row,
+±inf, w, h <= 0 or a larger value is an error). ``tau`` is the frame interval in s, in
 [1e-3, 1] (the envs' range; 1/30 for 30 fps video). A track needs at least :data:`MIN_FRAMES` frames of which
 at least :data:`MIN_MEASURED` are measured. Errors name the argument (ValueError for a value, TypeError for a
 type). The tuner sees the measurements only, never a ground truth.
@@ -53,7 +54,7 @@ from numpy.typing import ArrayLike
 
 from bboxtune.agents.policies.gate_file import GATE_FILE, Gate, read_gate
 from bboxtune.agents.smoothing import pretrained
-from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from bboxtune.envs.data.boxes import COORD_RULE, beyond_max_coord, cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.envs.episodes.actions import ACCEPTS, ActionMap, Nominal
 from bboxtune.envs.episodes.config import EnvConfig, check_real
 from bboxtune.envs.episodes.episode import Episode
@@ -93,10 +94,11 @@ def check_boxes(boxes: ArrayLike, name: str = "boxes") -> np.ndarray:
     if (missing.any(axis=1) & ~rows).any():
         i = int(np.argmax(missing.any(axis=1) & ~rows))
         raise ValueError(f"{name}[{i}] = {arr[i].tolist()} is partly NaN; a missing frame is a row of NaN")
-    bad = ~rows & (~np.isfinite(arr).all(axis=1) | (arr[:, 2:] <= 0).any(axis=1))
+    bad = ~rows & (~np.isfinite(arr).all(axis=1) | (arr[:, 2:] <= 0).any(axis=1) | beyond_max_coord(arr))
     if bad.any():
         i = int(np.argmax(bad))
-        raise ValueError(f"{name}[{i}] = {arr[i].tolist()}; allowed: finite x, y and w, h > 0, or a row of NaN")
+        raise ValueError(f"{name}[{i}] = {arr[i].tolist()}; allowed: finite x, y and w, h > 0 with {COORD_RULE}, "
+                         "or a row of NaN")
     if len(arr) < MIN_FRAMES or int((~rows).sum()) < MIN_MEASURED:
         raise ValueError(f"{name} has {len(arr)} frames, {int((~rows).sum())} of them measured; a track needs at "
                          f"least {MIN_FRAMES} frames and {MIN_MEASURED} measured ones")

@@ -9,12 +9,30 @@ Two formats, both (..., 4) float arrays in pixels:
 
 The OTB Matlab toolkit's centre ``x + (w − 1)/2`` differs by a constant half pixel, which cancels in every
 centre error between two boxes. NaN propagates (a missing box stays missing).
+
+Magnitude: every box coordinate the project reads or is handed — x, y, w, h in px — is at most :data:`MAX_COORD`
+(1e7 px) in absolute value, far beyond any image (an 8K frame is 7680 px wide) and far below where the filters'
+squared errors and covariances lose precision or overflow (boxes near 1e300 did). The readers (OTB box files and
+``OTB100.json``, :mod:`bboxtune.envs.data.otb_io`; MOT15 files, :mod:`bboxtune.envs.data.mot_io`) refuse a larger
+value naming the file and line, the API (``bboxtune.agents.tune`` / ``smooth``) naming the argument.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
+
+MAX_COORD = 1e7  # px: the largest |x|, |y|, w, h accepted anywhere (module docstring)
+COORD_RULE = f"|x|, |y|, w, h <= {MAX_COORD:.0e} px".replace("e+0", "e")  # the bound as error messages state it
+
+
+def beyond_max_coord(boxes: np.ndarray) -> np.ndarray:
+    """Mask over the rows of ``boxes`` (..., 4): any \\|value\\| > :data:`MAX_COORD` (NaN is not beyond).
+
+    >>> beyond_max_coord(np.array([[1e7, -1e7, 5, 5], [0, 0, 1.0000001e7, 1]])).tolist()
+    [False, True]
+    """
+    return (np.abs(boxes) > MAX_COORD).any(axis=-1)
 
 
 def _as_boxes(name: str, boxes: ArrayLike) -> np.ndarray:

@@ -22,8 +22,9 @@ lines up to :data:`MAX_LINE_CHARS` (1,024) characters, numbers as in :mod:`bboxt
 * UTF-8 (a byte-order mark is allowed), LF or CRLF line ends, blank lines only at the end of the file (the
   ETH-Pedcross2 det.txt ends with one); commas between fields, optionally with spaces or tabs around them;
 * frame: an integer value (``3`` or ``3.0``) with 1 <= frame <= :data:`MAX_INDEX`; id: an integer value with
-  \\|id\\| <= :data:`MAX_INDEX` (detections: exactly -1); w, h > 0 (no zero-size boxes); flag 0 or 1; every
-  number finite. A (frame, id) pair repeated in ground truth or results is an error naming both lines.
+  \\|id\\| <= :data:`MAX_INDEX` (detections: exactly -1); w, h > 0 (no zero-size boxes); \\|x\\|, \\|y\\|, w, h
+  <= 1e7 px (:data:`bboxtune.envs.data.boxes.MAX_COORD`); flag 0 or 1; every number finite. A (frame, id) pair
+  repeated in ground truth or results is an error naming both lines.
 * An empty (or blank) detection or results file has no rows; an empty ground-truth file is an error.
 """
 
@@ -37,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from bboxtune.envs.data import textfile
+from bboxtune.envs.data.boxes import COORD_RULE, beyond_max_coord
 from bboxtune.envs.data.number_grammar import comma_values, parse_float, shorten
 from bboxtune.envs.data.otb_io import csv_int, read_csv_table, read_text
 
@@ -182,6 +184,7 @@ def _parse(text: str, source: str, kind: str) -> tuple[np.ndarray, np.ndarray, n
         (~((frame == np.round(frame)) & (frame >= 1) & (frame <= MAX_INDEX)),
          lambda i: f"frame {_number(frame[i])}; allowed integers 1 <= frame <= {MAX_INDEX}"),
         (~((w > 0) & (h > 0)), lambda i: f"box size w={_number(w[i])}, h={_number(h[i])}; allowed w, h > 0"),
+        (beyond_max_coord(values[:, 2:6]), lambda i: f"box {values[i, 2:6].tolist()} is too large; allowed {COORD_RULE}"),
     ]
     if kind == "det":
         checks.append((ident != -1, lambda i: f"id {_number(ident[i])}; allowed -1 (detections have no identity)"))

@@ -13,7 +13,8 @@ box per line, OTB's 1-based pixel coordinates):
   Different lines may use different kinds (the original BlurCar1 file has one space-separated line among comma
   lines); a line that mixes commas with whitespace separators is an error;
 * UTF-8 (a byte-order mark is allowed), LF or CRLF line ends, blank lines only at the end of the file;
-* finite numbers in the grammar above. Negative w or h and any other column count are errors;
+* finite numbers in the grammar above, at most 1e7 px in absolute value (:data:`bboxtune.envs.data.boxes.MAX_COORD`).
+  Negative w or h and any other column count are errors;
 * **a box with w = 0 or h = 0 is a missing frame**: it becomes a NaN row, and an INFO log names the file and
   line (OTB marks the last frames of Board and Twinnings with ``0,0,0,0``). x and y may be negative (part of
   the box outside the image, e.g. Biker).
@@ -32,6 +33,7 @@ from collections.abc import Callable
 import numpy as np
 
 from bboxtune.envs.data import textfile
+from bboxtune.envs.data.boxes import COORD_RULE, beyond_max_coord
 from bboxtune.envs.data.number_grammar import MAX_NUMBER_CHARS, comma_values, parse_float, parse_int, shorten
 
 logger = logging.getLogger(__name__)
@@ -104,6 +106,10 @@ def check_boxes(boxes: np.ndarray, locate: Callable[[int], str]) -> np.ndarray:
             f"{locate(i)}: non-finite value in {boxes[i].tolist()}; allowed finite numbers "
             "(write 0,0,0,0 for a missing frame)"
         )
+    huge = beyond_max_coord(boxes)
+    if huge.any():
+        i = int(np.argmax(huge))
+        raise ValueError(f"{locate(i)}: box {boxes[i].tolist()} is too large; allowed {COORD_RULE}")
     negative = (boxes[:, 2:] < 0).any(axis=1)
     if negative.any():
         i = int(np.argmax(negative))

@@ -49,6 +49,13 @@ class Source:
             raise ValueError(f"track_length={self.n_frames} is too short: {why} needs at least {n} frames")
         self.min_frames = n
 
+    def max_frames(self) -> int:
+        """The most frames an episode of this source can have: ``n_frames`` where it is fixed (the sources of
+        varying length override this); what memory estimates multiply by (:mod:`bboxtune.envs.data.memory`)."""
+        if self.n_frames is None:
+            raise NotImplementedError(f"{type(self).__name__} draws episodes of varying length: it must override max_frames")
+        return self.n_frames
+
     def draw(self, sequence: str | None, noise_seed: int) -> Episode:
         raise NotImplementedError
 

@@ -98,6 +98,10 @@ class MOTSource(Source):
         span = detected_span(self._by_name[name].measured)
         return span.stop - span.start
 
+    def max_frames(self) -> int:
+        """The detected span of the pool's longest identity (frames)."""
+        return max(self._length(name) for name in self._long_enough)
+
     def require_frames(self, n: int, why: str) -> None:
         """Leave the identities whose detected span is shorter than ``n`` frames out of the pool."""
         long_enough = tuple(name for name in self._by_name if self._length(name) >= n)

@@ -6,12 +6,18 @@ import numpy as np
 
 from bboxtune import filters
 from bboxtune.envs.data import metrics
+from bboxtune.envs.data.memory import check_fits
 from bboxtune.envs.episodes.actions import ACCEPTS
 from bboxtune.filters.bytetrack_kf import SIZE_MIN
 
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
 # back ends that take boxes with w, h >= SIZE_MIN only (they filter the aspect w / h)
 POSITIVE_SIZES = ("bytetrack_kf", "sort_kf")
+# Peak memory of scoring candidates (run_positions + score_estimates) per candidate and frame, in bytes, with a 15 %
+# margin (tracemalloc, FilterTune-v0 score of 200 candidates on a 200-frame episode: ukf 490, kf / kf_cmn 420, the FIR
+# family 200-206, bytetrack_kf 155; less per frame on longer episodes; tests/envs/test_memory.py)
+CANDIDATE_FRAME_BYTES = {"ukf": 560, "kf": 480, "kf_cmn": 480}
+CANDIDATE_FRAME_BYTES_OTHER = 240
 
 
 def box_model(tau: float) -> filters.StateSpaceModel:
@@ -44,6 +50,13 @@ def run_positions(backend: str, y: np.ndarray, tau: float, params: dict[str, np.
     arrays (A,); only the parameters ``backend`` accepts are passed. Returns position estimates (A, T, 4) cx, cy,
     w, h (:func:`bboxtune.filters.candidate_positions`, which also handles frame units)."""
     return filters.candidate_positions(backend, detections(backend, y), tau, _used(backend, params))
+
+
+def check_candidates(backend: str, n_candidates: int, n_frames: int) -> None:
+    """``bboxtune.envs.data.memory.MemoryLimitError`` (a ``ValueError`` naming ``actions``) when scoring ``n_candidates``
+    actions on ``n_frames`` frames with ``backend`` would need more memory than this machine has available."""
+    per_frame = CANDIDATE_FRAME_BYTES.get(backend, CANDIDATE_FRAME_BYTES_OTHER)
+    check_fits(n_candidates * n_frames * per_frame, f"actions: {n_candidates} candidates × {n_frames} frames")
 
 
 def run_tracks(backend: str, ys: list[np.ndarray], taus: list[float], params: dict[str, np.ndarray]) -> list[np.ndarray]:

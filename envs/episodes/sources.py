@@ -202,6 +202,10 @@ class OTBSource(Source):
             raise ValueError(f"tracker {tracker!r} is not one of this source's trackers {self.trackers}")
         return tuple(n for n in self._pools[tracker] if n in self._long_enough)
 
+    def max_frames(self) -> int:
+        """The frames of the pool's longest sequence (every frame: a stride only shortens an episode)."""
+        return max(len(self.dataset.groundtruth(name)) for name in self.sequences)
+
     def require_frames(self, n: int, why: str) -> None:
         """Leave the sequences shorter than ``n`` frames out of the pool (documented in the module docstring)."""
         long_enough = frozenset(name for name in self.names if len(self.dataset.groundtruth(name)) >= n)
@@ -307,6 +311,10 @@ class MixSource(Source):
                                     OTBSource(part, dataset))
         self.block = self.parts["sim"].block if "sim" in self.parts else 1
         self.trackers = self.parts["otb_tracker"].trackers if "otb_tracker" in self.parts else ()
+
+    def max_frames(self) -> int:
+        """The longest episode of any part."""
+        return max(part.max_frames() for part in self.parts.values())
 
     def require_frames(self, n: int, why: str) -> None:
         for part in self.parts.values():

@@ -132,9 +132,15 @@ def test_json_and_yaml_files_give_their_path_and_data(tmp_path):
         assert doc == cli.Document(tmp_path / name, {"a": [1, 2.5]})
 
 
-@pytest.mark.parametrize("text", ["1,2,3", "1,2,3,4,5", "1,2,0,4", "1,2,3,-4", "a,2,3,4", "1,nan,3,4", "1,2,inf,4", ""])
+@pytest.mark.parametrize("text", ["1,2,3", "1,2,3,4,5", "1,2,0,4", "1,2,3,-4", "a,2,3,4", "1,nan,3,4", "1,2,inf,4", "",
+                                  "1.0000001e7,2,3,4", "1,-10000001,3,4", "1,2,1e300,4", "1,2,3,10000000.1"])
 def test_box_xywh_rejects_malformed_boxes(text):
     assert "allowed: x,y,w,h" in rejects(cli.box_xywh, text)
+
+
+def test_box_xywh_states_the_coordinate_bound():
+    assert "|x|, |y|, w, h <= 1e7 px" in rejects(cli.box_xywh, "1,2,3,1e8")
+    assert cli.box_xywh("-1e7,1e7,1e7,10000000") == (-1e7, 1e7, 1e7, 1e7)  # at the bound: accepted
 
 
 def test_box_xywh_reads_four_numbers():

@@ -47,6 +47,8 @@ CASES = [
     misuse("--model", "{run}", "--seeds-per-sequence", "3", mentions="--seeds-per-sequence applies to source 'otb'"),
     *[misuse("--model", "{run}", "--seeds-per-sequence", v) for v in ("0", "-1", "abc", "1.5")],
     misuse("--model", "{run}", "--env-kwargs", "source=video", "--seeds-per-sequence", "2", mentions="--seeds-per-sequence"),
+    misuse("--model", "{run}", "--episodes", "1000000000",  # the parser's maximum: ~90 TB of records and resamples
+           mentions="--episodes 1000000000 (1000000000 episodes × 14 methods, 2000 bootstrap resamples) needs ~"),
 ]
 OTB_CASES = [
     misuse("--model", "{run}", "--env-kwargs", "source=otb", "--episodes", "5", env=WITH_OTB,
@@ -65,6 +67,8 @@ OTB_CASES = [
     misuse("--model", "{run}", "--env-kwargs", "source=otb_tracker", "trackers=[SiamFC]", "--trackers", "test",
            env=WITH_OTB, mentions="--trackers: given twice"),
     *[misuse("--model", "{run}", "--trackers", v, env=WITH_OTB) for v in ("", ",", "SiamFC,SiamFC", "a,,b")],
+    misuse("--model", "{run}", "--env-kwargs", "source=otb", "--seeds-per-sequence", "100000000", env=WITH_OTB,
+           mentions="--seeds-per-sequence 100000000 ("),
 ]
 
 

@@ -172,7 +172,7 @@ def results(misuse_paths) -> Path:
     write_results(folder)
     misuse_paths.names["results"] = str(folder)
     for name, text in (("bad_line", "1,2,3,4\n1,2,3,4\n1,2,x,4\n"), ("short", "1,2,3,4\n" * 5),
-                       ("negative", "1,2,3,4\n" * 9 + "1,2,-3,4\n")):
+                       ("negative", "1,2,3,4\n" * 9 + "1,2,-3,4\n"), ("huge", "1,2,3,4\n" * 9 + "1e300,2,3,4\n")):
         bad = misuse_paths.root / name
         shutil.copytree(folder, bad)
         (bad / "Zeta.txt").write_text(text)
@@ -194,6 +194,7 @@ CASES = [
     misuse("--results", "{dir}", "--out", "{out}", mentions="--results"),  # no result files in it
     misuse("--results", "{bad_line}", "--out", "{out}", mentions="{bad_line}/Zeta.txt:3"),
     misuse("--results", "{negative}", "--out", "{out}", mentions="{negative}/Zeta.txt:10"),
+    misuse("--results", "{huge}", "--out", "{out}", mentions="{huge}/Zeta.txt:10: box [1e+300, 2.0, 3.0, 4.0] is too large"),
     misuse("--results", "{short}", "--out", "{out}", mentions="{short}/Zeta.txt has 5 frames"),
     misuse("--results", "{results}", "--out", "{under_file}"),
     misuse("--results", "{results}", "--out", "{file}"),

@@ -18,7 +18,7 @@ from bboxtune.agents.policies.gate_file import Gate, LinearGain
 from bboxtune.agents.smoothing import pretrained
 from bboxtune.agents.smoothing.tuner import load_pretrained
 from bboxtune.agents.training.run_files import RunError
-from bboxtune.envs.data.boxes import cxcywh_to_xywh
+from bboxtune.envs.data.boxes import MAX_COORD, cxcywh_to_xywh
 
 tune_module = sys.modules["bboxtune.agents.smoothing.tuner"]  # ``bboxtune.agents.tune`` is the function
 Tuner = tune_module.Tuner
@@ -175,6 +175,9 @@ BAD_BOXES = [
     (_with(GOOD, 5, [1, np.inf, 3, 4]), ValueError, r"boxes\[5\] .* finite x, y and w, h > 0"),
     (_with(GOOD, 6, [1, 2, 0, 4]), ValueError, r"boxes\[6\] .* w, h > 0"),
     (_with(GOOD, 7, [1, 2, 3, -4]), ValueError, r"boxes\[7\] .* w, h > 0"),
+    (_with(GOOD, 8, [1.0000001e7, 2, 3, 4]), ValueError, r"boxes\[8\] .* \|x\|, \|y\|, w, h <= 1e7 px"),
+    (_with(GOOD, 9, [1, -1e300, 3, 4]), ValueError, r"boxes\[9\] .* <= 1e7 px"),  # once failed in a filter, naming y
+    (_with(GOOD, 10, [1, 2, 3, 1.0000001e7]), ValueError, r"boxes\[10\] .* <= 1e7 px"),
     (GOOD[:7], ValueError, "boxes has 7 frames, 7 of them measured; a track needs at least 8 frames"),
     (np.where(np.arange(20)[:, None] == 3, GOOD, np.nan), ValueError, "boxes has 20 frames, 1 of them measured"),
 ]
@@ -184,6 +187,19 @@ BAD_BOXES = [
 def test_bad_boxes_are_named(boxes, error, match):
     with pytest.raises(error, match=match):
         agents.tune(boxes, 1 / 30, pretrained="sim_ufir_cmn")
+
+
+@pytest.mark.parametrize("name", ["sim_ufir_cmn", "sim_kf_cmn"])
+def test_boxes_at_the_coordinate_bound_are_tuned_and_smoothed(name):
+    """A track whose |x|, |y|, w, h reach MAX_COORD (1e7 px) exactly is accepted and smoothed to finite boxes."""
+    edge = GOOD.copy()
+    edge[:, 0] += -MAX_COORD - edge[:, 0].min()  # the leftmost x at -1e7
+    edge[:, 1] += MAX_COORD - edge[:, 1].max()
+    edge[:, 2:] *= MAX_COORD / edge[:, 2:].max()  # the largest size at 1e7: the track's scale
+    assert np.abs(edge).max() == MAX_COORD
+    params = agents.tune(edge, 1 / 30, pretrained=name)
+    smoothed = agents.smooth(edge, 1 / 30, pretrained=name)
+    assert all(np.isfinite(v) for v in params.values()) and np.isfinite(smoothed).all()
 
 
 @pytest.mark.parametrize(("tau", "error"), [

@@ -15,6 +15,7 @@ import pytest
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
+from bboxtune.envs.data.boxes import MAX_COORD
 from bboxtune.envs.data.mot_io import (
     MAX_INDEX,
     MAX_LINE_CHARS,
@@ -110,6 +111,10 @@ BAD = [
     ("det", DET + "3,-1,1,2,3,4,nan,-1,-1,-1\n", 3, "non-finite value 'nan'"),
     ("det", DET + "0,-1,1,2,3,4,0.5,-1,-1,-1\n", 3, "frame 0"),
     ("det", DET + "3,-1,1,2,3,0,0.5,-1,-1,-1\n", 3, "box size w=3, h=0"),
+    ("det", DET + "3,-1,1,-1.0000001e7,3,4,0.5,-1,-1,-1\n", 3, r"box \[1.0, -10000001.0, 3.0, 4.0\] is too large; "
+     r"allowed \|x\|, \|y\|, w, h <= 1e7 px"),
+    ("gt", ROW + "\n2,1,10,20,1e300,40,1,-1,-1,-1\n", 2, r"box \[10.0, 20.0, 1e\+300, 40.0\] is too large"),
+    ("results", "1,1,1,2,3,1.0000001e7,1,-1,-1,-1\n", 1, "is too large"),
     ("results", "1,1,1,2,3,4,1,-1,-1,-1\n1,2,1,2,3,4,1,-1,-1,-1\n1,2,5,6,7,8,1,-1,-1,-1\n", 3,
      "repeats frame 1, id 2 of line 2"),
 ]
@@ -121,6 +126,12 @@ def test_malformed_input_names_file_and_line(tmp_path, kind, content, line, mess
     with pytest.raises(ValueError, match=rf"^{re.escape(str(path))}:{line}: .*{message}") as err:
         READERS[kind](path)
     assert "\n" not in str(err.value)
+
+
+def test_boxes_at_the_coordinate_bound_are_read(tmp_path):
+    """|x|, |y|, w, h = MAX_COORD (1e7 px) is accepted, bit for bit; 1.0000001e7 is refused (BAD above)."""
+    res = read_results(write(tmp_path / "res.txt", "1,1,-1e7,1e7,1e7,10000000.0,1,-1,-1,-1\n"))
+    np.testing.assert_array_equal(res.box, [[-MAX_COORD, MAX_COORD, MAX_COORD, MAX_COORD]])
 
 
 def test_the_first_of_several_bad_rows_is_named(tmp_path):
@@ -170,7 +181,7 @@ def reference(text: str, kind: str) -> np.ndarray | None:
     frame, ident = rows[:, 0], rows[:, 1]
     ok = np.isfinite(rows).all() and (kind != "gt" or len(rows) > 0)
     ok = ok and all((frame == np.floor(frame)) & (frame >= 1) & (frame <= MAX_INDEX))
-    ok = ok and all(rows[:, 4:6].ravel() > 0)
+    ok = ok and all(rows[:, 4:6].ravel() > 0) and bool((np.abs(rows[:, 2:6]) <= MAX_COORD).all())
     if kind == "det":
         return rows if ok and all(ident == -1) else None
     ok = ok and all((ident == np.floor(ident)) & (np.abs(ident) <= MAX_INDEX))

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bboxtune.envs.data.boxes import MAX_COORD
 from bboxtune.envs.data.otb import OTBDataset, resolve_root, split, video_of
 from bboxtune.envs.data.otb_io import MAX_FILE_BYTES, parse_boxes, read_boxes
 
@@ -87,6 +88,9 @@ def test_zero_size_box_is_a_logged_missing_frame(tmp_path, caplog):
         ("1,2,3,4\n" + "1," * 600 + "\n", 2, "line is 1200 characters long; allowed at most 1024"),
         ("1,2,3,4\n" + "7" * 5_000_000 + "\n1,2,3,4\n", 2, "line is 5000000 characters long"),
         ("1,2,3,4\n \n1,2,3,4\n", 2, "blank line"),
+        ("1,2,3,4\n1.0000001e7,2,3,4\n", 2, r"box \[10000001.0, 2.0, 3.0, 4.0\] is too large; allowed \|x\|, \|y\|, w, h <= 1e7"),
+        ("1,2,3,4\n1,2,3,4\n1 -1e300 3 4\n", 3, "is too large"),  # the line-by-line path
+        ("1,2,3,4\n1,2,10000001,0\n", 2, "is too large"),  # also where the box is a zero-size (missing) frame
     ],
 )
 def test_malformed_box_text_names_file_and_line(tmp_path, content, line, message):
@@ -94,6 +98,13 @@ def test_malformed_box_text_names_file_and_line(tmp_path, content, line, message
     with pytest.raises(ValueError, match=message) as err:
         read_boxes(path)
     assert str(err.value).startswith(f"{path}:{line}:")
+
+
+def test_boxes_at_the_coordinate_bound_are_read(tmp_path):
+    """|x|, |y|, w, h = MAX_COORD (1e7 px) is accepted on both parser paths; beyond it is refused (above)."""
+    for text in ("-1e7,1e7,1e7,10000000\n", "-1e7 1e7 1e7 10000000.0\n"):
+        np.testing.assert_array_equal(read_boxes(write(tmp_path / "edge.txt", text)),
+                                      [[-MAX_COORD, MAX_COORD, MAX_COORD, MAX_COORD]])
 
 
 @pytest.mark.parametrize("line", [999, 1000, 1001, 2000, 2500])
@@ -309,6 +320,8 @@ def test_pysot_json_layout(tmp_path):
         ('{"Car4": {"gt_rect": [[1,2,3,4]], "img_names": ["img/\u0661.jpg"]}}', r"no frame number >= 1"),
         ('{"Car4": {"gt_rect": [[1,2,3,4]], "img_names": ["' + "1" * 40 + '.jpg"]}}', r"too long for an integer"),
         ('{"Car4": {"gt_rect": [[1,2,3,4], [1,2,1e999,4]], "img_names": ["1.jpg", "2.jpg"]}}', r"gt_rect\[1\]: non-finite"),
+        ('{"Car4": {"gt_rect": [[1,2,3,4], [1,2,1e300,4]], "img_names": ["1.jpg", "2.jpg"]}}',
+         r"gt_rect\[1\]: box .* is too large; allowed"),
     ],
 )
 def test_pysot_json_bad_input(tmp_path, content, message):

@@ -20,6 +20,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bboxtune.envs.data.boxes import MAX_COORD
 from bboxtune.envs.data.number_grammar import parse_float, parse_int
 from bboxtune.envs.data.otb import OTBDataset
 from bboxtune.envs.data.otb_io import MAX_LINE_CHARS, parse_boxes
@@ -42,7 +43,7 @@ def reference_box(line: str) -> list[float] | None:
     if match is None or len(line) > MAX_LINE_CHARS or any(len(t) > 64 for t in match.groups()):
         return None
     box = [float(t) for t in match.groups()]
-    if not np.isfinite(box).all() or min(box[2:]) < 0:
+    if not np.isfinite(box).all() or min(box[2:]) < 0 or max(map(abs, box)) > MAX_COORD:
         return None
     return [np.nan] * 4 if min(box[2:]) == 0 else box
 
