@@ -19,19 +19,28 @@ Every script validates its whole command line before it does any work or writes 
   (constructing a config, opening a dataset) into a one-line error naming the flag.
 * :func:`key_values` — ``KEY=VALUE`` / ``KEY:VALUE`` items (``--env-kwargs`` of train.py and compare.py,
   ``--hyperparams``) into a dict of YAML values.
+* :func:`command` — every command's ``main`` (so both ``scripts/<name>.py`` and the ``bboxtune-<name>`` console
+  scripts) is wrapped in it: Ctrl-C (SIGINT) or SIGTERM ends the command with one line on stderr,
+  ``<name>.py: interrupted`` (``terminated``; a command may add what to do next: :class:`Interrupted`), exit
+  status 130 (SIGTERM: 143), no traceback; SIGTERM is raised as an exception like Ctrl-C, so ``finally`` blocks
+  and ``with tempfile.TemporaryDirectory()`` remove what the command had in progress.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import shlex
+import signal
 import sys
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NoReturn
+from types import FrameType
+from typing import Any, NoReturn, ParamSpec
 
 import yaml
 
@@ -251,3 +260,58 @@ def box_xywh(text: str) -> tuple[float, float, float, float]:
                                          f"{COORD_RULE}")
     x, y, w, h = values
     return x, y, w, h
+
+
+P = ParamSpec("P")
+STOP_WORDS: dict[int, str] = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated"}
+
+
+class Interrupted(KeyboardInterrupt):
+    """A stop by Ctrl-C (``signum`` SIGINT) or SIGTERM, with the ``detail`` a command adds to :func:`command`'s
+    line (train.py: the step and how to resume)."""
+
+    def __init__(self, signum: int = signal.SIGINT, detail: str = "") -> None:
+        super().__init__(detail)
+        self.signum, self.detail = int(signum), detail
+
+    @classmethod
+    def of(cls, stop: KeyboardInterrupt, detail: str) -> Interrupted:
+        """``stop`` (Python's own KeyboardInterrupt is Ctrl-C) with ``detail``."""
+        return cls(getattr(stop, "signum", signal.SIGINT), detail)
+
+    def line(self, prog: str) -> str:
+        return " ".join([f"{prog}: {STOP_WORDS.get(self.signum, 'stopped')}", self.detail]).strip()
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    raise Interrupted(signum)
+
+
+_in_command = threading.local()  # a command's main called by another's (reproduce_otb.py -> reproduce.py): one handler
+
+
+def command(main: Callable[P, int]) -> Callable[P, int]:
+    """A command's ``main`` (module ``bboxtune.agents.commands.<name>``) whose Ctrl-C and SIGTERM give one line on
+    stderr, ``<name>.py: interrupted`` or ``<name>.py: terminated`` (and the :class:`Interrupted` detail, if the
+    command raised one), and return 128 + the signal number (130, 143) instead of a traceback. While ``main`` runs
+    (in the main thread) SIGTERM raises :class:`Interrupted` wherever the command is, as Ctrl-C raises
+    KeyboardInterrupt, so cleanup code runs; the previous handler is put back afterwards."""
+    prog = main.__module__.rsplit(".", 1)[-1] + ".py"
+
+    @functools.wraps(main)
+    def wrapped(*args: P.args, **kwargs: P.kwargs) -> int:
+        if getattr(_in_command, "active", False) or threading.current_thread() is not threading.main_thread():
+            return main(*args, **kwargs)
+        _in_command.active = True
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+        try:
+            return main(*args, **kwargs)
+        except KeyboardInterrupt as stop:
+            stopped = stop if isinstance(stop, Interrupted) else Interrupted()
+            print(stopped.line(prog), file=sys.stderr, flush=True)
+            return 128 + stopped.signum
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+            _in_command.active = False
+
+    return wrapped

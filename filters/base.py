@@ -26,7 +26,7 @@ from typing import Any, ClassVar, cast
 import numpy as np
 
 from bboxtune.filters.blocks import block_diagonal, coordinate_blocks
-from bboxtune.filters.model import StateSpaceModel
+from bboxtune.filters.model import StateSpaceModel, check_model
 from bboxtune.filters.threads import limited_blas
 from bboxtune.filters.validation import broadcast_params, check_measurements, check_values
 
@@ -131,12 +131,12 @@ class Filter(ABC):
         return {**params, "sigma_w": np.asarray(params["sigma_w"]) * np.asarray(tau) ** 2}
 
     def __init__(self, model: StateSpaceModel, **params: Any) -> None:
+        self.model = check_model(model)
         unknown = sorted(set(params) - set(self.DEFAULTS))
         if unknown:
             raise ValueError(
                 f"{self.name}: unknown parameter(s) {unknown}; allowed: {sorted(self.DEFAULTS)}"
             )
-        self.model = model
         self.params = self._validate({**self.DEFAULTS, **params})
 
     @property

@@ -44,7 +44,7 @@ import numpy as np
 
 from bboxtune.filters.base import CHUNK_SAMPLES, Carry, Filter, not_started
 from bboxtune.filters.blocks import block_diagonal, coordinate_blocks
-from bboxtune.filters.model import StateSpaceModel
+from bboxtune.filters.model import StateSpaceModel, check_model
 from bboxtune.filters.threads import limited_blas
 from bboxtune.filters.validation import check_range
 
@@ -116,7 +116,7 @@ class BoxKF(Filter):
     FIXED: ClassVar[tuple[int, ...]] = ()  # coordinates without a rate (SORT's aspect): rate and its variance 0
 
     def __init__(self, model: StateSpaceModel, **params: Any) -> None:
-        if model.M != M:
+        if check_model(model).M != M:
             raise ValueError(f"{self.name} filters boxes (cx, cy, w, h); the model has M={model.M}, allowed: "
                              "bboxtune.filters.constant_velocity(tau, ndim=4)")
         super().__init__(model, **params)

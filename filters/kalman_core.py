@@ -41,7 +41,7 @@ import numpy as np
 
 from bboxtune.filters.base import AxisCarry
 from bboxtune.filters.blocks import split_covariance, split_state
-from bboxtune.filters.validation import VALUE_MAX, VARIANCE_MAX, check_prior_scale
+from bboxtune.filters.validation import VALUE_MAX, VARIANCE_MAX, check_prior_scale, numeric
 
 WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)  # UPDATE_Z + i: KF-CMN over the i-th gap length
 
@@ -351,13 +351,13 @@ def check_prior(x0: object, P0: object, K: int, M: int, sigma_v: np.ndarray,
     ``sigma_v``² (:mod:`bboxtune.filters.validation`; the model's interval ``tau``)."""
     x = None
     if x0 is not None:
-        x = np.asarray(x0, dtype=float)
+        x = numeric("x0", x0, f"None or a finite array of shape ({K},) with |x0| <= {VALUE_MAX:g}")
         if x.shape != (K,) or not np.all(np.abs(x) <= VALUE_MAX):
             raise ValueError(f"x0={x0!r} (shape {x.shape}) is invalid: allowed None or a finite array of shape ({K},) "
                              f"with |x0| <= {VALUE_MAX:g}")
     P = None
     if P0 is not None:
-        P = np.asarray(P0, dtype=float)
+        P = numeric("P0", P0, f"None or a finite array of shape ({K}, {K}) with |P0| <= {VARIANCE_MAX:g}")
         if P.shape != (K, K) or not np.all(np.abs(P) <= VARIANCE_MAX):
             raise ValueError(f"P0 has shape {P.shape} (max |P0| = {np.max(np.abs(P), initial=0):.3g}): allowed None or "
                              f"a finite array of shape ({K}, {K}) with |P0| <= {VARIANCE_MAX:g}")

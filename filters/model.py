@@ -16,7 +16,7 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
-from bboxtune.filters.validation import check_tau
+from bboxtune.filters.validation import check_tau, short_repr
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,9 +60,17 @@ def constant_velocity(tau: float, ndim: int = 1) -> StateSpaceModel:
     (8, 4, (8, 8), (8, 4))
     """
     tau = float(check_tau(tau))
-    if not isinstance(ndim, (int, np.integer)) or ndim < 1:
+    if not isinstance(ndim, (int, np.integer)) or isinstance(ndim, bool) or ndim < 1:
         raise ValueError(f"ndim={ndim!r} must be an integer >= 1")
     return _constant_velocity(tau, int(ndim))
+
+
+def check_model(model: object) -> StateSpaceModel:
+    """``model`` if it is a :class:`StateSpaceModel`; a TypeError naming ``model`` and the expected type otherwise."""
+    if not isinstance(model, StateSpaceModel):
+        raise TypeError(f"model={short_repr(model)} ({type(model).__name__}); allowed: a StateSpaceModel, e.g. "
+                        "bboxtune.filters.constant_velocity(tau, ndim)")
+    return model
 
 
 @lru_cache(maxsize=1024)

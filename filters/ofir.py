@@ -23,7 +23,7 @@ import numpy as np
 
 from bboxtune.filters.fir_core import check_fir_params
 from bboxtune.filters.oufir import KalmanWindowFIR, hold_last, kf_step, window_gls_gain
-from bboxtune.filters.validation import VARIANCE_MAX, check_prior_scale
+from bboxtune.filters.validation import VARIANCE_MAX, check_prior_scale, numeric
 
 
 def default_prior(sigma_v: float, tau: float) -> np.ndarray:
@@ -76,7 +76,7 @@ def check_prior(P0: object, sigma_v: np.ndarray, tau: float) -> np.ndarray | Non
     (ValueError otherwise)."""
     if P0 is None:
         return None
-    P = np.asarray(P0, dtype=float)
+    P = numeric("P0", P0, f"None or a finite symmetric positive definite (2, 2) covariance with |P0| <= {VARIANCE_MAX:g}")
     if P.shape != (2, 2) or not np.all(np.abs(P) <= VARIANCE_MAX) or not np.array_equal(P, P.T):
         raise ValueError(f"P0={P0!r} is out of range: allowed None or a finite symmetric positive definite (2, 2) "
                          f"covariance of one coordinate's [position, velocity] with |P0| <= {VARIANCE_MAX:g}")

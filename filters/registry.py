@@ -40,5 +40,17 @@ def filter_class(name: str) -> type[Filter]:
 
 
 def make(name: str, model: StateSpaceModel, **params: Any) -> Filter:
-    """Configure back end ``name`` for ``model``; ``params`` as documented by its class."""
+    """Configure back end ``name`` for ``model``; ``params`` as documented by its class.
+
+    ValueError for an unknown ``name`` or parameter, or a value out of its documented range
+    (:mod:`bboxtune.filters.validation`); TypeError naming ``model`` if it is not a
+    :class:`~bboxtune.filters.model.StateSpaceModel`, and naming the parameter for a value that is not a number
+    (a str such as ``'1'``, a bool, None: never coerced).
+
+    >>> from bboxtune import filters
+    >>> filters.make("kf", filters.constant_velocity(0.1), sigma_w="1")
+    Traceback (most recent call last):
+    ...
+    TypeError: sigma_w='1' (str) is not a number; allowed: a number ... with 1e-30 <= sigma_w <= 1e+30
+    """
     return filter_class(name)(model, **params)

@@ -59,24 +59,43 @@ def _describe(value: object, ok: np.ndarray | None = None) -> str:
     return f"array of shape {arr.shape} (first values {arr.ravel()[:3].tolist()})"
 
 
-def as_param(name: str, value: object) -> np.ndarray:
-    """``value`` as a float array of shape () or (B,)."""
+def short_repr(value: object, limit: int = 60) -> str:
+    """``repr(value)`` on one line (runs of whitespace as one space), cut to ``limit`` characters with "..."."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def numeric(name: str, value: object, allowed: str) -> np.ndarray:
+    """``value`` as a float array of any shape. Only numbers are taken (int, float, NumPy integer or floating
+    scalars and arrays): a str such as ``'1'``, a bool, None or any other object is never coerced but refused with
+    a TypeError naming ``name`` and what is ``allowed``."""
     try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}={value!r} must be a number or an array of shape (B,)") from None
+        arr = None if isinstance(value, (str, bytes)) else np.asarray(value)
+    except (TypeError, ValueError):  # ragged nested sequences
+        arr = None
+    if arr is None or arr.dtype.kind not in "iuf":
+        raise TypeError(f"{name}={short_repr(value)} ({type(value).__name__}) is not a number; allowed: {allowed}")
+    return arr.astype(float)
+
+
+def as_param(name: str, value: object, allowed: str = "") -> np.ndarray:
+    """``value`` as a float array of shape () or (B,) (:func:`numeric`: TypeError for a value that is not a number;
+    ``allowed`` the range, e.g. ``"1e-30 <= sigma_w <= 1e+30"``, for its message)."""
+    arr = numeric(name, value, "a number or an array of shape (B,) of numbers (int or float)"
+                  + (f" with {allowed}" if allowed else ""))
     if arr.ndim > 1:
         raise ValueError(f"{name} has shape {arr.shape}; allowed: a scalar or shape (B,), one per track")
     return arr
 
 
 def check_range(name: str, value: object, low: float, high: float, low_open: bool = False) -> np.ndarray:
-    """A float array of shape () or (B,) with ``low <= value <= high`` (``low < value`` if ``low_open``)."""
-    arr = as_param(name, value)
+    """A float array of shape () or (B,) with ``low <= value <= high`` (``low < value`` if ``low_open``);
+    :func:`as_param`'s TypeError for a value that is not a number."""
+    allowed = f"{low:g} {'<' if low_open else '<='} {name} <= {high:g}"
+    arr = as_param(name, value, allowed)
     ok = ((arr > low) if low_open else (arr >= low)) & (arr <= high)  # NaN fails both comparisons
     if not ok.all():
-        left = "<" if low_open else "<="
-        raise ValueError(f"{name}={_describe(value, ok)} is out of range: allowed {low:g} {left} {name} <= {high:g}")
+        raise ValueError(f"{name}={_describe(value, ok)} is out of range: allowed {allowed}")
     return arr
 
 
@@ -110,7 +129,7 @@ def check_prior_scale(blocks: np.ndarray, sigma_v: np.ndarray, tau: float, low: 
 
 def check_horizon(value: object, K: int, max_horizon: int = 100_000) -> np.ndarray:
     """FIR horizon N: an integer with K <= N <= max_horizon."""
-    arr = as_param("horizon", value)
+    arr = as_param("horizon", value, f"{K} <= horizon <= {max_horizon}, an integer")
     ok = (arr >= K) & (arr <= max_horizon) & (arr == np.round(arr))  # NaN fails every comparison
     if not ok.all():
         raise ValueError(

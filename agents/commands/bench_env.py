@@ -32,7 +32,7 @@ from bboxtune import (
     envs,  # noqa: F401  (registers the environments)
     filters,
 )
-from bboxtune.agents.cli import ArgumentParser, argument_errors, nonnegative_int, positive_int
+from bboxtune.agents.cli import ArgumentParser, argument_errors, command, nonnegative_int, positive_int
 from bboxtune.agents.commands.bench_filters import filterpy_loop
 from bboxtune.agents.training.runs import make_vec
 from bboxtune.envs.episodes.actions import BACKENDS
@@ -55,6 +55,7 @@ def rates(count: int, fn, repeat: int) -> tuple[float, float]:
     return count / min(seconds), count / float(np.median(seconds))
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(prog="bench_env.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("--backend", default="ufir_cmn", choices=BACKENDS)

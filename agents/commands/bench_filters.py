@@ -43,7 +43,7 @@ from typing import TypeVar, cast
 import numpy as np
 
 from bboxtune import filters
-from bboxtune.agents.cli import ArgumentParser, HelpFormatter, float_range, nonnegative_int, positive_int
+from bboxtune.agents.cli import ArgumentParser, HelpFormatter, command, float_range, nonnegative_int, positive_int
 from bboxtune.envs.data.simulate import PRESETS, simulate
 from bboxtune.filters.ufir import ufir_iterative
 
@@ -211,6 +211,7 @@ def speed_sections(args: argparse.Namespace) -> None:
             print(f"    {name:12s} {n_updates / t:>14,.0f}")
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(prog="bench_filters.py", description=__doc__, formatter_class=HelpFormatter)
     ap.add_argument("--tracks", type=positive_int, default=256, help="tracks of sections 1–3")

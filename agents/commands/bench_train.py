@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bboxtune.agents.cli import ArgumentParser, out_dir, positive_int
+from bboxtune.agents.cli import ArgumentParser, command, out_dir, positive_int
 
 REPO = Path(__file__).resolve().parents[2]  # the checkout: train.py runs as scripts/train.py there
 CARTPOLE = ("import sys, torch; from stable_baselines3 import PPO; torch.set_num_threads(1); "
@@ -43,6 +43,7 @@ def timed(cmd: list[str]) -> tuple[float, float, str]:
     return wall, max(peak_kb, before) / 1e6, proc.stdout
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(prog="bench_train.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("--timesteps", type=positive_int, default=100_000, help="env steps of both runs")

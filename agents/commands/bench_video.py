@@ -11,12 +11,13 @@ import time
 
 import numpy as np
 
-from bboxtune.agents.cli import ArgumentParser, argument_errors, positive_int
+from bboxtune.agents.cli import ArgumentParser, argument_errors, command, positive_int
 from bboxtune.envs.video.camera import background_shift
 from bboxtune.envs.video.detectors import DETECTORS, detect_video, make_detector
 from bboxtune.envs.video.synthetic import VideoRanges, synthetic_video
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     p = ArgumentParser(prog="bench_video.py", description=__doc__.split("\n\n")[0])
     p.add_argument("--videos", type=positive_int, default=5, help="synthetic videos (default 5)")

@@ -92,6 +92,7 @@ import torch
 from bboxtune.agents.cli import (
     ArgumentParser,
     HelpFormatter,
+    command,
     existing_dir,
     int_range,
     key_values,
@@ -433,6 +434,7 @@ def run(argv: list[str] | None = None) -> Path:
     return out
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command line: :func:`run`; exit status 0 (a bad argument exits 2 with one line)."""
     run(argv)

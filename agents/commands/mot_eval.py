@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bboxtune.agents.cli import ArgumentParser, command_line, existing_dir, out_dir, outputs_taken
+from bboxtune.agents.cli import ArgumentParser, command, command_line, existing_dir, out_dir, outputs_taken
 from bboxtune.agents.evaluation import mot_eval
 from bboxtune.agents.evaluation.video_tables import csv_text
 from bboxtune.agents.smoothing.tuner import Tuner, load_pretrained
@@ -96,6 +96,7 @@ def summary_text(rows: list[dict[str, str]], split: str, n: int, sequences: list
     return "\n".join(lines) + "\n"
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     parser = ArgumentParser(prog="mot_eval.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("--mot-root", default=None, type=existing_dir, help="MOT15 data folder (default: $MOT_ROOT)")

@@ -30,6 +30,7 @@ import numpy as np  # noqa: E402
 
 from bboxtune.agents.cli import (  # noqa: E402
     ArgumentParser,
+    command,
     command_line,
     existing_dir,
     int_range,
@@ -188,6 +189,7 @@ def _save_png(fig: plt.Figure, fh: IO[bytes]) -> None:
     plt.close(fig)
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     parser = ArgumentParser(prog="mot_fit.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("--mot-root", default=None, type=existing_dir, help="MOT15 data folder (default: $MOT_ROOT)")

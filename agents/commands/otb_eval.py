@@ -16,7 +16,7 @@ import json
 import logging
 import sys
 
-from bboxtune.agents.cli import ArgumentParser
+from bboxtune.agents.cli import ArgumentParser, command
 from bboxtune.envs.data.metrics import score_sequences
 from bboxtune.envs.data.otb import OTBDataset
 
@@ -36,6 +36,7 @@ def evaluate(dataset: OTBDataset, trackers: list[str]) -> dict[str, dict[str, fl
     return table
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     parser = ArgumentParser(prog="otb_eval.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("--otb-root", default=None, help="OTB data folder or OTB100.json (default: $OTB_ROOT)")

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import welch
 
-from bboxtune.agents.cli import ArgumentParser, existing_dir, int_range, nonnegative_int, out_dir
+from bboxtune.agents.cli import ArgumentParser, command, existing_dir, int_range, nonnegative_int, out_dir
 from bboxtune.envs.data.atomic_files import write_text_atomic
 from bboxtune.envs.data.otb import OTBDataset, split
 from bboxtune.envs.data.sim_motion import OTBMotion
@@ -223,6 +223,7 @@ def report(result: dict) -> str:
 DEFAULT_TRACKS = 300  # simulated tracks per motion model
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     parser = ArgumentParser(prog="otb_motion.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("--otb-root", type=existing_dir, default=None, help="OTB data folder (default: $OTB_ROOT)")

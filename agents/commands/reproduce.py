@@ -36,7 +36,7 @@ from typing import cast
 
 import numpy as np
 
-from bboxtune.agents.cli import ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int, out_dir
+from bboxtune.agents.cli import ArgumentParser, HelpFormatter, argument_errors, command, int_range, nonnegative_int, out_dir
 from bboxtune.agents.reproduce import mo_fir, otb, shmaliy_cmn
 from bboxtune.agents.reproduce.common import Section, Settings, make_settings, save_figure
 from bboxtune.envs.data.atomic_files import atomic_write_file
@@ -158,6 +158,7 @@ def render(sections: list[Section], command: str, settings: Settings) -> str:
     return "\n".join(head + body)
 
 
+@command
 def main(argv: list[str] | None = None, part: str | None = None) -> int:
     """Run every experiment (``part`` None) or those of one part (a key of :data:`PARTS`); returns 0."""
     argv = sys.argv[1:] if argv is None else argv

@@ -23,7 +23,9 @@ bboxtune.agents.evaluation.gate) writes a sequence where its gate stays closed a
 bytes, unchanged. params.csv: sequence, n_frames, n_missing_in, n_missing_out, left_alone (1: written as read) and
 the chosen parameters (e.g. psi, horizon; exact values; what the model sets, also where the sequence is left alone).
 With --otb-root the sequences found there are scored, raw and smoothed, by scripts/otb_eval.py's scorer (success
-AUC, precision at 20 px, mean over sequences; printed and written to scores.csv).
+AUC, precision at 20 px, mean over sequences; printed and written to scores.csv); the smoothed files are scored
+from a temporary folder (smooth-*), removed also when Ctrl-C or SIGTERM stops the run (one line, exit status 130 /
+143; --out is then not written).
 
 --format mot (default otb: all of the above) smooths MOT Challenge tracks one identity at a time
 (agents/smoothing/mot_smooth.py):
@@ -64,6 +66,7 @@ from bboxtune.agents.cli import (
     ArgumentParser,
     HelpFormatter,
     argument_errors,
+    command,
     existing_dir,
     existing_file,
     float_range,
@@ -244,6 +247,7 @@ def smooth_otb(parser: ArgumentParser, args: argparse.Namespace) -> dict[str, st
     return files
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -21,6 +21,7 @@ from pathlib import Path
 from bboxtune.agents.cli import (
     ArgumentParser,
     HelpFormatter,
+    command,
     float_range,
     key_values,
     nonnegative_int,
@@ -111,6 +112,7 @@ def run(argv: list[str] | None = None) -> Path:
     return Path(args.out)
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command line: :func:`run`; exit status 0 (a bad argument exits 2 with one line)."""
     run(argv)

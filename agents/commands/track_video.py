@@ -37,6 +37,7 @@ from bboxtune import filters
 from bboxtune.agents.cli import (
     ArgumentParser,
     box_xywh,
+    command,
     existing_dir,
     existing_file,
     int_range,
@@ -138,6 +139,7 @@ def scores(raw: np.ndarray, est: np.ndarray, truth: np.ndarray) -> dict[str, flo
     return out
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -5,8 +5,9 @@
     python scripts/train.py --resume runs/ppo_ufir_cmn_sim_s0   # continue a killed run
     python scripts/train.py --resume runs/ppo_ufir_cmn_sim_s0 --timesteps 200000   # train it on to 200k in all
 
-Episodes: training draws the train split, the EvalCallback scores the val split (``bboxtune.agents.splits``: disjoint
-noise-seed sets; OTB sources also use the env's sequence splits). Observations are normalised by
+Episodes: training draws the train split; every --eval-freq timesteps (at the first step reaching each multiple of
+it, also after a resume) the policy is scored on the val split (``bboxtune.agents.splits``: disjoint noise-seed
+sets; OTB sources also use the env's sequence splits). Observations are normalised by
 VecNormalize (obs only; the rewards, e.g. log(RMSE_rule/RMSE), are already scale-free). The run directory layout is in
 ``bboxtune.agents.training.runs``. Same seed → same result on the same machine (uninterrupted runs); a resumed run continues from
 its last checkpoint with reseeded envs (seed + timesteps done), so it does not replay earlier episodes.
@@ -23,7 +24,12 @@ DIR/config.yml, which a resume never rewrites; only --timesteps and --trust-pick
 --timesteps is always the run's total: with --resume the target to train up to (at least the timesteps already
 done), recorded in the checkpoints, so a later resume without --timesteps keeps it; by default the previous
 target. Runs and checkpoints hold no pickles; --trust-pickle lets a resume read an old run's
-vecnormalize.pkl / replay_buffer.pkl (pickles can run code: only for runs you trust).
+vecnormalize.pkl / replay_buffer.pkl (pickles can run code: only for runs you trust). A resumed run evaluates at
+the same steps as an uninterrupted one (the next multiple of --eval-freq after its checkpoint's step).
+
+Ctrl-C (or SIGTERM) stops a run with one line, "train.py: interrupted at step N; resume with: python
+scripts/train.py --resume DIR" (N: the step of its newest checkpoint, where the resume continues), exit status 130
+(SIGTERM: "terminated", 143).
 """
 
 from __future__ import annotations
@@ -42,7 +48,7 @@ import stable_baselines3
 import torch
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
@@ -50,6 +56,8 @@ from bboxtune import envs  # noqa: F401
 from bboxtune.agents.cli import (
     ArgumentParser,
     HelpFormatter,
+    Interrupted,
+    command,
     existing_dir,
     key_values,
     nonnegative_int,
@@ -59,8 +67,15 @@ from bboxtune.agents.cli import (
 )
 from bboxtune.agents.evaluation.plots import learning_curve
 from bboxtune.agents.training.algos import ALGOS, algo_class
-from bboxtune.agents.training.callbacks import AtomicCheckpoint, EpisodeLog, SaveBest, restore_eval_state
-from bboxtune.agents.training.checkpoints import Checkpoint, newest_complete
+from bboxtune.agents.training.callbacks import (
+    AtomicCheckpoint,
+    EpisodeLog,
+    ProgressBar,
+    SaveBest,
+    ScheduledEval,
+    restore_eval_state,
+)
+from bboxtune.agents.training.checkpoints import Checkpoint, newest_complete, resume_hint
 from bboxtune.agents.training.footprint import check_training_memory
 from bboxtune.agents.training.hyperparams import VEC_ENVS, Hyperparams, constructor_kwargs, load_hyperparams
 from bboxtune.agents.training.run_files import (
@@ -309,9 +324,8 @@ def build(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Check
     if hp.normalize:
         eval_env = VecNormalize(eval_env, training=False, norm_obs=hp.normalize.get("norm_obs", True), norm_reward=False)
     episode_log = EpisodeLog(state.get("episode_timesteps"), state.get("episode_rewards"))
-    evaluation = EvalCallback(eval_env, eval_freq=max(cfg["eval_freq"] // hp.n_envs, 1),
-                              n_eval_episodes=cfg["eval_episodes"], deterministic=True, log_path=str(run_dir),
-                              verbose=0, callback_on_new_best=SaveBest(run_dir))
+    evaluation = ScheduledEval(eval_env, cfg["eval_freq"], n_eval_episodes=cfg["eval_episodes"], deterministic=True,
+                               log_path=str(run_dir), verbose=0, callback_on_new_best=SaveBest(run_dir))
     restore_eval_state(evaluation, state)
     checkpointer = AtomicCheckpoint(run_dir, cfg["checkpoint_freq"], target, episode_log, evaluation)
     return model, CallbackList([episode_log, evaluation, checkpointer]), episode_log, evaluation, checkpointer
@@ -371,13 +385,16 @@ def run(argv: list[str] | None = None) -> Path:
     except RunError as err:
         parser.error(str(err))
     with lock:
-        if args.resume is None:
-            write_text_atomic(run_dir / CONFIG, yaml.safe_dump(cfg, sort_keys=False))
-            write_text_atomic(run_dir / "command.txt", command + "\n")
-        else:
-            with open(run_dir / "command.txt", "a") as fh:
-                fh.write(command + "\n")
-        return train(cfg, hp, run_dir, checkpoint, target, args.trust_pickle)
+        try:
+            if args.resume is None:
+                write_text_atomic(run_dir / CONFIG, yaml.safe_dump(cfg, sort_keys=False))
+                write_text_atomic(run_dir / "command.txt", command + "\n")
+            else:
+                with open(run_dir / "command.txt", "a") as fh:
+                    fh.write(command + "\n")
+            return train(cfg, hp, run_dir, checkpoint, target, args.trust_pickle)
+        except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (bboxtune.agents.cli.command)
+            raise Interrupted.of(stop, resume_hint(run_dir)) from None
 
 
 def train(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Checkpoint | None, target: int,
@@ -395,8 +412,12 @@ def train(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Check
     else:
         print(f"{cfg['algo']} on {cfg['env_id']} {cfg['env_kwargs']}: timesteps {model.num_timesteps} -> {target}")
         start = time.perf_counter()
-        model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=True,
-                    reset_num_timesteps=checkpoint is None, tb_log_name=cfg["algo"])
+        progress = ProgressBar()
+        try:
+            model.learn(total_timesteps=remaining, callback=CallbackList([callbacks, progress]),
+                        reset_num_timesteps=checkpoint is None, tb_log_name=cfg["algo"])
+        finally:
+            progress.close()
         print(f"trained in {time.perf_counter() - start:.0f} s ({model.num_timesteps} timesteps)")
         checkpointer.save()
     atomic_write(run_dir / "model.zip", model.save)
@@ -424,7 +445,8 @@ def train(cfg: dict[str, Any], hp: Hyperparams, run_dir: Path, checkpoint: Check
     return run_dir
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
-    """The command line: :func:`run`; exit status 0 (a bad argument exits 2 with one line)."""
+    """The command line: :func:`run`; exit status 0 (a bad argument exits 2 with one line, Ctrl-C 130)."""
     run(argv)
     return 0

@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from bboxtune import filters  # noqa: E402
-from bboxtune.agents.cli import ArgumentParser, argument_errors, nonnegative_int, out_dir, positive_float, positive_int  # noqa: E402
+from bboxtune.agents.cli import ArgumentParser, argument_errors, command, nonnegative_int, out_dir, positive_float, positive_int  # noqa: E402
 from bboxtune.agents.evaluation.stats import paired_mean_ci  # noqa: E402
 from bboxtune.agents.evaluation.video_tables import write_csv, write_json  # noqa: E402
 from bboxtune.envs.data.atomic_files import atomic_write  # noqa: E402
@@ -103,6 +103,7 @@ def compare(seed: int, args: argparse.Namespace, ranges: VideoRanges) -> dict:
     return out
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     args.smoothing = sorted({*args.smoothing, 1.0, args.example_smoothing})

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from bboxtune.agents.cli import ArgumentParser, HelpFormatter, argument_errors, int_range, nonnegative_int, out_dir
+from bboxtune.agents.cli import ArgumentParser, HelpFormatter, argument_errors, command, int_range, nonnegative_int, out_dir
 from bboxtune.agents.evaluation.stats import paired_mean_ci
 from bboxtune.agents.evaluation.video_tables import csv_text, folder_in_use, json_text, publish_folder
 from bboxtune.agents.smoothing.video_tuning import EpisodeTuner, action_map, grid_tune, load_tuner
@@ -112,6 +112,7 @@ def worst(auc: list[float], videos: list[str]) -> dict[str, float | str]:
     return {"success_auc": float(auc[i]), "video": videos[i]}
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     args, fixed = parse_args(argv)
     rng = np.random.default_rng(args.seed)

@@ -1,4 +1,5 @@
-"""SB3 callbacks of ``scripts/train.py``: training-episode log, atomic checkpoints, the best model and its statistics."""
+"""SB3 callbacks of ``scripts/train.py``: training-episode log, evaluations on a schedule of timesteps that resumes keep,
+atomic checkpoints, the best model and its statistics."""
 
 from __future__ import annotations
 
@@ -6,7 +7,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
+from stable_baselines3.common.callbacks import BaseCallback, EvalCallback, ProgressBarCallback
+from stable_baselines3.common.vec_env import VecEnv
 
 from bboxtune.agents.training.checkpoints import save_checkpoint
 from bboxtune.agents.training.run_files import STATS, save_stats
@@ -47,6 +49,32 @@ class SaveBest(BaseCallback):
         if venv is not None:
             save_stats(venv, self.run_dir / f"best_{STATS}")
         return True
+
+
+class ScheduledEval(EvalCallback):
+    """SB3's EvalCallback on a schedule of timesteps: it evaluates at the first step at which ``num_timesteps``
+    reaches or passes a multiple of ``every`` (with n envs, ``num_timesteps`` grows by n per step). SB3's own
+    schedule counts its calls, which restart at 0 with every ``learn()``, so each resume restarted it; here a run
+    resumed from a checkpoint at step s evaluates next at the first multiple of ``every`` above s, the steps at
+    which an uninterrupted run evaluates. Everything else (the evaluation, ``evaluations.npz``, the best
+    model callback) is EvalCallback's; its other keyword arguments are passed on."""
+
+    def __init__(self, eval_env: VecEnv, every: int, **kwargs: Any) -> None:
+        super().__init__(eval_env, eval_freq=1, **kwargs)  # every call that gets through _on_step evaluates
+        self.every = int(every)
+        self.due = self.every
+
+    def _on_training_start(self) -> None:
+        self.due = self._next_after(self.model.num_timesteps)
+
+    def _next_after(self, timesteps: int) -> int:
+        return (timesteps // self.every + 1) * self.every
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps < self.due:
+            return True
+        self.due = self._next_after(self.num_timesteps)
+        return super()._on_step()
 
 
 def eval_state(cb: EvalCallback) -> dict[str, Any]:
@@ -96,3 +124,16 @@ class AtomicCheckpoint(BaseCallback):
         state = {"total_timesteps": self.total_timesteps, "episode_timesteps": self.episode_log.timesteps,
                  "episode_rewards": self.episode_log.rewards, **eval_state(self.evaluation)}
         return save_checkpoint(self.run_dir, self.model, state)
+
+
+class ProgressBar(ProgressBarCallback):
+    """SB3's progress bar (tqdm.rich), which :meth:`close` closes also when training stops early. SB3 closes it at
+    the end of training only: after Ctrl-C the bar was left open until tqdm's ``__del__`` at interpreter shutdown,
+    where rich, stopping its live display, fails with a second traceback ("ImportError: sys.meta_path is None,
+    Python is likely shutting down")."""
+
+    def close(self) -> None:
+        """Close the bar if one was opened (closing a closed bar does nothing)."""
+        pbar = getattr(self, "pbar", None)
+        if pbar is not None:
+            pbar.close()

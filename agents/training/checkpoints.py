@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shlex
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -113,6 +114,18 @@ def _pointer(root: Path, log: Callable[[str], None]) -> str | None:
         log(f"{path}: {name[:40]!r} is not a checkpoint name; using the checkpoint folders themselves")
         return None
     return name
+
+
+def resume_hint(run_dir: Path) -> str:
+    """Where a stopped run stands and the command that continues it: ``at step N; resume with: python
+    scripts/train.py --resume DIR``, N the step of the newest checkpoint folder by name (a folder gets its name
+    when complete; the resume still checks it: :func:`newest_complete`), or ``before its first checkpoint; ...``."""
+    root = Path(run_dir) / CHECKPOINTS
+    steps = [int(m.group(1)) for p in (root.iterdir() if root.is_dir() else ()) if (m := _NAME.fullmatch(p.name))]
+    resume = f"resume with: python scripts/train.py --resume {shlex.quote(str(run_dir))}"
+    if not steps:
+        return f"before its first checkpoint; {resume} (it starts again from step 0)"
+    return f"at step {max(steps)}; {resume}"
 
 
 def newest_complete(run_dir: Path, check: Callable[[Path], None], log: Callable[[str], None] = print) -> Checkpoint | None:
