@@ -250,7 +250,7 @@ class FilterRetuneEnv(TrackEnv):
         None otherwise). Does not advance the episode."""
         if self.episode is None or self._start >= len(self.episode.y):
             raise RuntimeError("no window to score: call reset()")
-        params = self.action_map.to_params(actions, self.episode.nominal)
+        params = self.action_map.to_params(actions, self.episode.nominal, "actions")
         self._check_candidates(len(params["horizon"]), self._window_bounds()[1])
         est, _ = self._run_window(params, self._broadcast_carry(len(params["horizon"])))
         return self._score_window(est, params, *self._window_bounds())
@@ -265,7 +265,7 @@ class FilterRetuneEnv(TrackEnv):
         the episode. One-shot tuning (one action from now on) is a search over this."""
         if self.episode is None or self._start >= len(self.episode.y):
             raise RuntimeError("no window to score: call reset()")
-        params = self.action_map.to_params(np.atleast_2d(actions), self.episode.nominal)
+        params = self.action_map.to_params(np.atleast_2d(actions), self.episode.nominal, "actions")
         end = len(self.episode.y)
         self._check_candidates(len(params["horizon"]), end)
         est, _ = self._run_window(params, self._broadcast_carry(len(params["horizon"])), end)

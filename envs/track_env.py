@@ -47,7 +47,7 @@ def check_reset_args(seed: Any, options: Any) -> tuple[int | None, dict[str, Any
                         f"{RESET_OPTIONS}")
     unknown = sorted(map(repr, set(options) - set(RESET_OPTIONS)))
     if unknown:
-        raise ValueError(f"unknown reset option(s) {', '.join(unknown)}; allowed: {RESET_OPTIONS}")
+        raise ValueError(f"options: unknown reset option(s) {', '.join(unknown)}; allowed: {RESET_OPTIONS}")
     checked: dict[str, Any] = {}
     if options.get("noise_seed") is not None:
         checked["noise_seed"] = _seed_value("options['noise_seed']", options["noise_seed"])

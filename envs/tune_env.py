@@ -327,7 +327,7 @@ class FilterTuneEnv(TrackEnv):
         hundred bytes) raises ``bboxtune.envs.data.memory.MemoryLimitError``, a ``ValueError``, before any filter runs."""
         if self.episode is None:
             raise RuntimeError("call reset() before score()")
-        params = self.action_map.to_params(actions, self.episode.nominal)
+        params = self.action_map.to_params(actions, self.episode.nominal, "actions")
         check_candidates(self.config.backend, len(params["horizon"]), len(self.episode.y))
         est = run_positions(self.config.backend, self.episode.y, self.episode.tau, params)
         scores = score_estimates(est, self.episode.truth)

@@ -34,7 +34,7 @@ _REGISTRY: dict[str, tuple[str, str]] = {
 def filter_class(name: str) -> type[Filter]:
     """The :class:`Filter` subclass of back end ``name`` (one of :data:`NAMES` or :data:`PEER_NAMES`)."""
     if name not in _REGISTRY:
-        raise ValueError(f"unknown filter {name!r}; allowed: {', '.join(NAMES + PEER_NAMES)}")
+        raise ValueError(f"name={name!r} is not a filter; allowed: {', '.join(NAMES + PEER_NAMES)}")
     module, cls = _REGISTRY[name]
     return getattr(import_module(module), cls)
 
@@ -53,4 +53,6 @@ def make(name: str, model: StateSpaceModel, **params: Any) -> Filter:
     ...
     TypeError: sigma_w='1' (str) is not a number; allowed: a number ... with 1e-30 <= sigma_w <= 1e+30
     """
+    if not isinstance(name, str):
+        raise TypeError(f"name={name!r} ({type(name).__name__}); allowed: one of {', '.join(NAMES + PEER_NAMES)}")
     return filter_class(name)(model, **params)

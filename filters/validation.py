@@ -162,7 +162,10 @@ def check_measurements(y: object, M: int) -> tuple[np.ndarray, bool]:
 
     NaN marks a missing measurement; ±inf and abs(y) > :data:`VALUE_MAX` are rejected. B = 0 tracks and T = 0
     frames are allowed (the filters then return empty arrays)."""
-    arr = np.asarray(y, dtype=float)
+    try:
+        arr = np.asarray(y, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"y is not an array of numbers ({err}); allowed: (T, M) or (B, T, M) floats") from None
     if arr.ndim not in (2, 3):
         raise ValueError(f"y has rank {arr.ndim} (shape {arr.shape}); allowed: (T, M) or (B, T, M)")
     if arr.shape[-1] != M:

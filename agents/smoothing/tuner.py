@@ -266,7 +266,13 @@ def load_tuner(backend: str | None = None, pretrained_name: str | None = None,
     if model is not None and pretrained_name is not None:
         raise ValueError("pass model= (a run directory) or pretrained= (a name), not both")
     if model is not None:
+        if not Path(model).is_dir():
+            raise ValueError(f"model={str(model)!r} is not a folder; allowed: a scripts/train.py run directory")
         tuner = Tuner.from_run(model)
+    elif pretrained_name is None and backend is not None and f"otb_tracker_{backend}" not in pretrained.available():
+        tuned = sorted(name.removeprefix("otb_tracker_") for name in pretrained.available() if name.startswith("otb_tracker_"))
+        raise ValueError(f"backend={backend!r} has no pretrained tracker-output tuner; allowed: {', '.join(tuned)} "
+                         "(or pass pretrained= / model=)")
     else:
         tuner = load_pretrained(pretrained_name or (f"otb_tracker_{backend}" if backend else DEFAULT_PRETRAINED))
     if backend is not None and backend != tuner.backend:

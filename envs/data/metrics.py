@@ -37,8 +37,24 @@ PRECISION_THRESHOLDS = np.arange(0.0, 51.0)  # px, centre-error thresholds 0, 1,
 PRECISION_AT = 20.0  # px, the OTB precision score threshold
 
 
+def _numbers(name: str, values: ArrayLike) -> np.ndarray:
+    """``values`` as a float array (ValueError naming ``name`` for what is not numbers)."""
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name} is not an array of numbers ({err})") from None
+
+
+def _thresholds(name: str, values: ArrayLike, low: float, high: float) -> np.ndarray:
+    """Thresholds as a 1-D float array, each finite within [low, high] (ValueError naming ``name``)."""
+    arr = _numbers(name, values)
+    if arr.ndim > 1 or not (np.isfinite(arr) & (arr >= low) & (arr <= high)).all():
+        raise ValueError(f"{name}={values!r}; allowed: a number or 1-D array of finite numbers in [{low:g}, {high:g}]")
+    return np.atleast_1d(arr)
+
+
 def _boxes(name: str, boxes: ArrayLike) -> np.ndarray:
-    arr = np.asarray(boxes, dtype=float)
+    arr = _numbers(name, boxes)
     if arr.ndim < 1 or arr.shape[-1] != 4:
         raise ValueError(f"{name} has shape {arr.shape}; allowed: (..., 4) xywh boxes")
     return arr
@@ -125,7 +141,7 @@ def success_curve(pred: ArrayLike, gt: ArrayLike, thresholds: ArrayLike = SUCCES
     (..., T, 4), (..., T, 4) → (..., n_thresholds)."""
     p, g = _pair(pred, gt)
     o, valid = _scored_iou(p, g)
-    return _rate(o[..., None] > np.asarray(thresholds, dtype=float), valid)
+    return _rate(o[..., None] > _thresholds("thresholds", thresholds, 0.0, 1.0), valid)
 
 
 def success_auc(pred: ArrayLike, gt: ArrayLike) -> np.ndarray:
@@ -146,18 +162,18 @@ def precision_curve(pred: ArrayLike, gt: ArrayLike, thresholds: ArrayLike = PREC
     (..., T, 4), (..., T, 4) → (..., n_thresholds)."""
     p, g = _pair(pred, gt)
     e, valid = _scored_center_error(p, g)
-    return _rate(e[..., None] <= np.asarray(thresholds, dtype=float), valid)
+    return _rate(e[..., None] <= _thresholds("thresholds", thresholds, 0.0, np.inf), valid)
 
 
 def precision_score(pred: ArrayLike, gt: ArrayLike, threshold: float = PRECISION_AT) -> np.ndarray:
     """OTB precision score: fraction of frames with centre error <= 20 px. (..., T, 4) → (...)."""
-    return precision_curve(pred, gt, [threshold])[..., 0]
+    return precision_curve(pred, gt, _thresholds("threshold", threshold, 0.0, np.inf))[..., 0]
 
 
 def _detection_counts(pred: np.ndarray, gt: np.ndarray, thresholds: ArrayLike):
     o, valid = _scored_iou(pred, gt)
     detected = valid & _valid(pred)
-    tp = ((o[..., None] >= np.asarray(thresholds, dtype=float)) & detected[..., None]).sum(axis=-2)
+    tp = ((o[..., None] >= _thresholds("thresholds", thresholds, 0.0, 1.0)) & detected[..., None]).sum(axis=-2)
     return tp, detected.sum(axis=-1)[..., None], valid.sum(axis=-1)[..., None]
 
 
@@ -188,7 +204,7 @@ def f_score(pred: ArrayLike, gt: ArrayLike, thresholds: ArrayLike = SUCCESS_THRE
 
 
 def _errors(est: ArrayLike, truth: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    e, t = np.asarray(est, dtype=float), np.asarray(truth, dtype=float)
+    e, t = _numbers("est", est), _numbers("truth", truth)
     _check_sequences(("est", "truth"), e, t, "(..., T, M)")
     valid = ~np.isnan(t)
     return np.where(valid, e - np.where(valid, t, 0.0), 0.0), valid

@@ -58,8 +58,9 @@ def data_root(root: str | os.PathLike | None, env_var: str, name: str) -> Path:
     if root is None:
         root = os.environ.get(env_var) or None
         if root is None:
-            raise ValueError(f"no {name} data location: pass --{name.lower()}-root DIR (root=...) or set {env_var}")
+            raise ValueError(f"no {name} data location: pass {name.lower()}_root=DIR (--{name.lower()}-root DIR on the "
+                             f"command line) or set {env_var}")
     path = Path(root)
     if not path.exists():
-        raise ValueError(f"{name} root {str(path)!r} does not exist")
+        raise ValueError(f"{name.lower()}_root / ${env_var}: {name} root {str(path)!r} does not exist")
     return path

@@ -130,26 +130,27 @@ class ActionMap:
     def dim(self) -> int:
         return len(self.tune)
 
-    def check(self, actions: np.ndarray) -> np.ndarray:
+    def check(self, actions: np.ndarray, name: str = "action") -> np.ndarray:
         """Validate actions shaped (d,) or (A, d) with A >= 1: real numbers (not bool), finite, within
-        [-1, 1] (see the module docstring for the 1e-6 float32 tolerance); returns float64 (A, d)."""
+        [-1, 1] (see the module docstring for the 1e-6 float32 tolerance); returns float64 (A, d). Errors name the
+        argument as ``name``."""
         try:
             raw = np.asarray(actions)
         except (ValueError, TypeError) as err:  # ragged nesting and the like
-            raise ValueError(f"action {actions!r} is not an array of numbers ({err})") from None
+            raise ValueError(f"{name} {actions!r} is not an array of numbers ({err})") from None
         if raw.dtype.kind not in "iuf":
-            raise TypeError(f"action has dtype {raw.dtype}; allowed: real numbers (float or integer)")
+            raise TypeError(f"{name} has dtype {raw.dtype}; allowed: real numbers (float or integer)")
         a = raw.astype(np.float64)
         a2 = a.reshape(1, -1) if a.ndim == 1 else a
         if a2.ndim != 2 or a2.shape[1] != self.dim or a2.shape[0] == 0:
-            raise ValueError(f"action has shape {a.shape}; allowed ({self.dim},) or (A, {self.dim}) with A >= 1 "
+            raise ValueError(f"{name} has shape {a.shape}; allowed ({self.dim},) or (A, {self.dim}) with A >= 1 "
                              f"for tune={self.tune}")
         if not (np.abs(a2) <= 1 + _TOLERANCE).all():  # NaN and ±inf fail this too
             if not np.isfinite(a2).all():
-                raise ValueError(f"action {a.tolist() if a.size <= 8 else a.shape} contains NaN or inf; allowed finite "
+                raise ValueError(f"{name} {a.tolist() if a.size <= 8 else a.shape} contains NaN or inf; allowed finite "
                                  "values in [-1, 1]")
             worst = float(a2.flat[np.argmax(np.abs(a2))])
-            raise ValueError(f"action entry {worst} is out of range: allowed [-1, 1]")
+            raise ValueError(f"{name} entry {worst} is out of range: allowed [-1, 1]")
         return np.minimum(np.maximum(a2, -1.0), 1.0)
 
     def check_one(self, action: np.ndarray) -> np.ndarray:
@@ -163,11 +164,12 @@ class ActionMap:
                              "(score() takes batches)")
         return self.check(action)
 
-    def to_params(self, actions: np.ndarray, nominal: Nominal | Sequence[Nominal]) -> dict[str, np.ndarray]:
+    def to_params(self, actions: np.ndarray, nominal: Nominal | Sequence[Nominal], name: str = "action"
+                  ) -> dict[str, np.ndarray]:
         """Actions (d,) or (A, d) → {name: array (A,)} for every parameter in ``TUNABLE`` (untuned ones at their
         nominal values); ``nominal`` one for every row, or a sequence of A, row a's for action a (a batch of
         episodes)."""
-        a = self.check(actions)
+        a = self.check(actions, name)
         n = a.shape[0]
         if isinstance(nominal, Nominal):
             values = {k: getattr(nominal, k) for k in TUNABLE}
