@@ -141,13 +141,19 @@ def test_a_resume_of_a_tampered_sweep_is_refused_before_ray(misuse_paths, capsys
 
 
 class _Planted:
-    """A pickle that, when loaded, writes a marker file (what a crafted tuner.pkl could do, with os.system)."""
+    """A pickle that, when loaded, writes a marker file (what a crafted tuner.pkl could do, with os.system) and
+    then gives what ``original`` (a pickle's bytes) holds."""
 
-    def __init__(self, marker: Path) -> None:
-        self.marker = marker
+    def __init__(self, marker: Path, original: bytes) -> None:
+        self.marker, self.original = marker, original
 
     def __reduce__(self):
-        return (Path.write_text, (self.marker, "unpickled"))
+        return (_mark_and_load, (str(self.marker), self.original))
+
+
+def _mark_and_load(marker: str, original: bytes) -> object:
+    Path(marker).write_text("unpickled")
+    return pickle.loads(original)
 
 
 @pytest.fixture
@@ -173,10 +179,14 @@ def test_smoke_sweep_runs_two_trials_and_aggregates_them(tmp_path: Path, capsys,
     assert "1 setting(s)" in capsys.readouterr().out
     kept = out / "trials" / "ppo_ufir_cmn_sim_s0" / "trial.csv"
     stamp = kept.stat().st_mtime_ns
-    marker = tmp_path / "unpickled.txt"
-    (out / "ray" / "sweep" / "tuner.pkl").write_bytes(pickle.dumps(_Planted(marker)))  # a crafted sweep folder
-    (out / "trials" / "ppo_ufir_cmn_sim_s1" / "trial.csv").unlink()  # an unfinished trial: rerun (its run is done)
-    again = sweep_command.run(["--out", str(out), "--smoke", "--resume", "--cpus", "2"])
+    marker, state = tmp_path / "unpickled.txt", out / "ray" / "sweep" / "tuner.pkl"
+    state.write_bytes(pickle.dumps(_Planted(marker, state.read_bytes())))  # a crafted sweep folder
+    rerun = out / "trials" / "ppo_ufir_cmn_sim_s1" / "trial.csv"
+    rerun.unlink()  # an unfinished trial: run again (its run and comparison are there: only trial.csv is written)
+    sweep_command.run(["--out", str(out), "--smoke", "--resume", "--cpus", "2"])
     assert not marker.exists() and kept.stat().st_mtime_ns == stamp  # no pickle read; the finished trial kept
-    assert read_trial(again / "trials" / "ppo_ufir_cmn_sim_s1" / "trial.csv")["seed"] == "1"
-    assert read_spec(out / "sweep.json") == sweep_command.SMOKE
+    assert read_trial(rerun)["seed"] == "1" and read_spec(out / "sweep.json") == sweep_command.SMOKE
+    state.write_bytes(pickle.dumps(_Planted(marker, state.read_bytes())))
+    rerun.unlink()
+    sweep_command.run(["--out", str(out), "--smoke", "--resume", "--trust-pickle", "--cpus", "2"])
+    assert marker.read_text() == "unpickled"  # Ray Tune's own restore: what --trust-pickle vouches for
