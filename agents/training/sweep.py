@@ -63,7 +63,8 @@ class SweepSpec:
     compare_args: tuple[str, ...] = ()  # more compare.py flags for every trial (besides --split val)
 
     def trials(self) -> list[dict[str, Any]]:
-        """Every point of the grid, as Tune's ``param_space`` entries (names are unique and file-safe)."""
+        """Every point of the grid, as Tune's ``param_space`` entries (names without ``/`` or spaces; sweep.py
+        refuses a grid whose names repeat or are too long for a folder)."""
         keys = sorted(self.grid)
         points = []
         for algo, backend, source, values, seed in itertools.product(
@@ -116,7 +117,8 @@ def read_trial(path: Path, trial: dict[str, Any] | None = None) -> dict[str, str
         raise RunError(f"{path}: expected a header {','.join(TRIAL_COLUMNS)} and one row of as many cells")
     row = rows[0]
     try:
-        [float(row[m]) for m in METRICS]
+        for metric in METRICS:
+            float(row[metric])
     except ValueError:
         raise RunError(f"{path}: {', '.join(METRICS)} must be numbers; got {[row[m] for m in METRICS]}") from None
     if trial is not None:
