@@ -6,16 +6,19 @@ unseen while choosing settings). It reports ``val_log_ratio`` (the trained model
 ``val_gap_closed`` (its share of the rule → oracle gap) and ``val_win_rate`` to Tune. Layout of ``OUT``::
 
     sweep.json                 the sweep's settings (the grid, the flags); a resume checks it is the same sweep
-    ray/                       Ray Tune's experiment state (``Tuner.restore`` resumes from it)
+    ray/                       Ray Tune's experiment state (read back only by a resume with ``trust_pickle``)
     trials/<trial>/run/        the train.py run directory;   trials/<trial>/compare/  compare.py on val
     trials/<trial>/trial.csv   one row: the trial's settings and metrics
     aggregate.csv / aggregate.md   one row per setting (all but the seed): seeds, mean / min / max of the metrics
 
-Resuming (``--resume``): finished trials are kept, errored and unfinished ones run again; a trial whose run
-directory holds a checkpoint continues it with ``train.py --resume`` instead of starting over. Local by default
-(``ray.init()`` on this machine with its CPU count); ``address="auto"`` or ``"ray://host:port"`` joins a cluster,
-whose nodes need this repository at the same path with the package installed (``pip install -e '.[ray]'``).
-Ray is an optional extra (``bboxtune[ray]``): it is imported by the functions that need it.
+Resuming reads no pickle: the trial list is rebuilt from ``sweep.json`` (:func:`read_spec`, a JSON file checked
+field by field), a trial with a ``trial.csv`` (:func:`finished_trials`, checked against the trial) is kept and the
+others run again, a trial whose run directory holds a checkpoint continuing it with ``train.py --resume``. Ray
+Tune's own restore (``Tuner.restore`` of ``ray/sweep``, which unpickles ``tuner.pkl`` and can run code) is used
+only with ``trust_pickle``. Local by default (a new ``ray.init(address="local")`` with ``cpus`` CPUs, this
+machine's by default); ``address="auto"`` or ``"ray://host:port"`` joins a cluster, whose nodes need this
+repository at the same path with the package installed (``pip install -e '.[ray]'``). Ray is an optional extra
+(``bboxtune[ray]``): it is imported by the functions that need it.
 """
 
 from __future__ import annotations
@@ -28,18 +31,22 @@ import os
 import subprocess
 import sys
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bboxtune.agents.training.run_files import RunError
+from bboxtune.agents.training.run_files import RunError, read_json
+from bboxtune.envs.data import textfile
 from bboxtune.envs.data.atomic_files import write_text_atomic
+from bboxtune.envs.data.number_grammar import shorten
 
 REPO = Path(__file__).resolve().parents[2]
 METRICS = ("val_log_ratio", "val_gap_closed", "val_win_rate")
 SETTINGS = ("algo", "backend", "source", "hyperparams")  # what a setting is (a trial adds its seed)
+TRIAL_COLUMNS = ("name", "algo", "backend", "source", "seed", "hyperparams", *METRICS)  # trial.csv
+_LISTS = {"algos": str, "backends": str, "sources": str, "seeds": int, "train_args": str, "compare_args": str}
 
 
 @dataclass(frozen=True)
@@ -56,7 +63,8 @@ class SweepSpec:
     compare_args: tuple[str, ...] = ()  # more compare.py flags for every trial (besides --split val)
 
     def trials(self) -> list[dict[str, Any]]:
-        """Every point of the grid, as Tune's ``param_space`` entries (names are unique and file-safe)."""
+        """Every point of the grid, as Tune's ``param_space`` entries (names without ``/`` or spaces; sweep.py
+        refuses a grid whose names repeat or are too long for a folder)."""
         keys = sorted(self.grid)
         points = []
         for algo, backend, source, values, seed in itertools.product(
@@ -69,6 +77,77 @@ class SweepSpec:
         return points
 
 
+def read_spec(path: Path) -> SweepSpec:
+    """The sweep ``sweep.json`` at ``path`` describes, parsed as JSON and checked field by field (a file that was
+    sent or edited is input like any other); :class:`RunError` naming ``path`` and the field."""
+    doc = read_json(path)
+    names = sorted(f.name for f in fields(SweepSpec))
+    spec = doc.get("spec") if isinstance(doc, dict) and list(doc) == ["spec"] else None
+    if not isinstance(spec, dict) or sorted(spec) != names:
+        raise RunError(f"{path}: not a sweep's settings; expected {{\"spec\": {{...}}}} with exactly the keys {names}")
+    for key, kind in _LISTS.items():
+        value = spec[key]
+        if not isinstance(value, list) or not all(isinstance(v, kind) and not isinstance(v, bool) for v in value):
+            raise RunError(f"{path}: spec.{key} = {shorten(json.dumps(value))}; expected a list of {kind.__name__}")
+    if not spec["algos"] or not spec["backends"] or not spec["sources"] or not spec["seeds"] or min(spec["seeds"]) < 0:
+        raise RunError(f"{path}: spec.algos, backends, sources and seeds must not be empty (seeds: integers >= 0)")
+    grid, steps = spec["grid"], spec["timesteps"]
+    if not isinstance(grid, dict) or not all(isinstance(v, list) and v for v in grid.values()):
+        raise RunError(f"{path}: spec.grid = {shorten(json.dumps(grid))}; expected an object of non-empty lists")
+    if steps is not None and (not isinstance(steps, int) or isinstance(steps, bool) or steps < 1):
+        raise RunError(f"{path}: spec.timesteps = {shorten(json.dumps(steps))}; expected null or an integer >= 1")
+    return SweepSpec(algos=tuple(spec["algos"]), backends=tuple(spec["backends"]), sources=tuple(spec["sources"]),
+                     seeds=tuple(spec["seeds"]), grid=grid, timesteps=steps, train_args=tuple(spec["train_args"]),
+                     compare_args=tuple(spec["compare_args"]))
+
+
+def write_spec(spec: SweepSpec, path: Path) -> None:
+    """``spec`` as ``sweep.json`` (atomically): what :func:`read_spec` reads back."""
+    write_text_atomic(path, json.dumps({"spec": asdict(spec)}, indent=2, allow_nan=False) + "\n")
+
+
+def read_trial(path: Path, trial: dict[str, Any] | None = None) -> dict[str, str]:
+    """The one row of the ``trial.csv`` at ``path``: the columns :data:`TRIAL_COLUMNS`, numbers in the metric
+    columns and, given ``trial``, the settings of that trial; :class:`RunError` naming ``path`` otherwise."""
+    try:
+        rows = list(csv.DictReader(io.StringIO(textfile.read_text(path), newline="")))
+    except (ValueError, csv.Error) as err:
+        raise RunError(f"{path}: not a readable trial.csv ({err})") from None
+    if len(rows) != 1 or tuple(rows[0]) != TRIAL_COLUMNS or None in rows[0].values():
+        raise RunError(f"{path}: expected a header {','.join(TRIAL_COLUMNS)} and one row of as many cells")
+    row = rows[0]
+    try:
+        for metric in METRICS:
+            float(row[metric])
+    except ValueError:
+        raise RunError(f"{path}: {', '.join(METRICS)} must be numbers; got {[row[m] for m in METRICS]}") from None
+    if trial is not None:
+        want = {**{k: str(trial[k]) for k in ("name", "algo", "backend", "source", "seed")},
+                "hyperparams": json.dumps(trial["hyperparams"], sort_keys=True)}
+        if {k: row[k] for k in want} != want:
+            raise RunError(f"{path}: the results of another trial (expected {want}); remove the file to run the trial again")
+    return row
+
+
+def finished_trials(spec: SweepSpec, out: Path) -> set[str]:
+    """The names of the trials of ``spec`` with a ``trial.csv`` in ``out/trials`` (each checked by :func:`read_trial`)."""
+    done = set()
+    for trial in spec.trials():
+        path = out / "trials" / trial["name"] / "trial.csv"
+        if path.exists():
+            read_trial(path, trial)
+            done.add(trial["name"])
+    return done
+
+
+def train_argv(spec: SweepSpec, trial: dict[str, Any], run: Path) -> list[str]:
+    """The train.py flags of a new run of ``trial`` in the run directory ``run``."""
+    hyper = [f"{k}:{json.dumps(v)}" for k, v in trial["hyperparams"].items()]
+    return ["--algo", trial["algo"], "--backend", trial["backend"], "--source", trial["source"], "--seed", str(trial["seed"]),
+            "--out", str(run), *(["--timesteps", str(spec.timesteps)] if spec.timesteps else []),
+            *(["--hyperparams", *hyper] if hyper else []), *spec.train_args]
+
+
 def trial_commands(spec: SweepSpec, trial: dict[str, Any], folder: Path) -> tuple[list[str], list[str]]:
     """The train.py and compare.py command lines of ``trial`` writing into ``folder`` (a run directory with a
     checkpoint is resumed, not restarted)."""
@@ -77,11 +156,7 @@ def trial_commands(spec: SweepSpec, trial: dict[str, Any], folder: Path) -> tupl
     if (run / "checkpoints" / "latest").exists():
         train = [py, str(REPO / "scripts/train.py"), "--resume", str(run)]
     else:
-        hyper = [f"{k}:{json.dumps(v)}" for k, v in trial["hyperparams"].items()]
-        train = [py, str(REPO / "scripts/train.py"), "--algo", trial["algo"], "--backend", trial["backend"],
-                 "--source", trial["source"], "--seed", str(trial["seed"]), "--out", str(run),
-                 *(["--timesteps", str(spec.timesteps)] if spec.timesteps else []),
-                 *(["--hyperparams", *hyper] if hyper else []), *spec.train_args]
+        train = [py, str(REPO / "scripts/train.py"), *train_argv(spec, trial, run)]
     return train, [py, str(REPO / "scripts/compare.py"), "--model", str(run), "--split", "val", "--out", str(compare),
                    *spec.compare_args]
 
@@ -115,8 +190,8 @@ def run_trial(config: dict[str, Any]) -> dict[str, float]:
         if code != 0:
             raise RuntimeError(f"{' '.join(cmd)} exited {code}; see {folder / log}")
     metrics = val_metrics(folder / "compare", trial["algo"])
-    row = {**{k: trial[k] for k in ("name", "algo", "backend", "source", "seed")},
-           "hyperparams": json.dumps(trial["hyperparams"], sort_keys=True), **metrics}
+    row = {**{k: trial[k] for k in TRIAL_COLUMNS[:5]}, "hyperparams": json.dumps(trial["hyperparams"], sort_keys=True),
+           **metrics}
     write_csv(folder / "trial.csv", [row])
     tune.report(metrics)
     return metrics
@@ -134,10 +209,7 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
 def aggregate(out: Path) -> list[dict[str, Any]]:
     """Every finished trial's ``trial.csv`` grouped by setting (all but the seed): ``aggregate.csv`` and
     ``aggregate.md`` in ``out`` (seeds, mean / min / max of each metric), best mean val log-ratio first."""
-    trials = []
-    for path in sorted((out / "trials").glob("*/trial.csv")):
-        with open(path, newline="") as fh:
-            trials += list(csv.DictReader(fh))
+    trials = [read_trial(path) for path in sorted((out / "trials").glob("*/trial.csv"))]
     if not trials:
         raise RunError(f"{out}: no finished trial (trials/*/trial.csv)")
     groups: dict[tuple, list[dict[str, str]]] = {}
@@ -163,39 +235,68 @@ def aggregate(out: Path) -> list[dict[str, Any]]:
     return table
 
 
+def resume_state(spec: SweepSpec, out: Path) -> set[str]:
+    """Check that ``out`` holds the sweep ``spec`` (its ``sweep.json``, :func:`read_spec`) and return the names of
+    its finished trials (:func:`finished_trials`); :class:`RunError` naming the file otherwise."""
+    saved = out / "sweep.json"
+    if not saved.is_file():
+        raise RunError(f"{out}: no sweep.json (nothing to resume)")
+    if read_spec(saved) != spec:
+        raise RunError(f"{saved}: another sweep's settings; resume with the same flags or choose another --out")
+    return finished_trials(spec, out)
+
+
 def run_sweep(spec: SweepSpec, out: Path, *, address: str | None = None, cpus: int | None = None,
-              cpus_per_trial: float = 1.0, resume: bool = False) -> list[dict[str, Any]]:
-    """Run (or, with ``resume``, continue) the sweep ``spec`` into ``out`` and aggregate it."""
+              cpus_per_trial: float = 1.0, resume: bool = False, trust_pickle: bool = False) -> list[dict[str, Any]]:
+    """Run (or, with ``resume``, continue) the sweep ``spec`` into ``out`` and aggregate it.
+
+    ``sweep.json`` is written once Ray is up, so a refused address or CPU count leaves ``out`` untouched. A resume
+    (:func:`resume_state`) runs the trials without a ``trial.csv`` (all finished: Ray is not started); with
+    ``trust_pickle`` it restores Ray Tune's saved experiment instead, where there is one."""
+    out = out.resolve()
+    done = resume_state(spec, out) if resume else set()
+    pending = [t for t in spec.trials() if t["name"] not in done]
+    if pending:
+        _tune(spec, out, pending, trust_pickle, address=address, cpus=cpus, cpus_per_trial=cpus_per_trial, new=not resume)
+    return aggregate(out)
+
+
+def _tune(spec: SweepSpec, out: Path, trials: list[dict[str, Any]], restore: bool, *, address: str | None,
+          cpus: int | None, cpus_per_trial: float, new: bool) -> None:
+    """Start (or join) Ray, write ``sweep.json`` if ``new``, and run ``trials`` (or restore the saved experiment)."""
     import ray
     from ray import tune
 
-    out = out.resolve()
-    settings = {"spec": asdict(spec)}
-    saved = out / "sweep.json"
-    if resume:
-        if not saved.is_file():
-            raise RunError(f"{out}: no sweep.json (nothing to resume)")
-        if json.loads(saved.read_text()) != json.loads(json.dumps(settings)):
-            raise RunError(f"{saved}: another sweep's settings; resume with the same flags or choose another --out")
-    else:
-        out.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(saved, json.dumps(settings, indent=2) + "\n")
     os.environ.setdefault("RAY_CHDIR_TO_TRIAL_DIR", "0")
-    ray.init(address=address, num_cpus=None if address else (cpus or os.cpu_count()), include_dashboard=False,
-             log_to_driver=False, ignore_reinit_error=True)
+    try:  # "local": a new instance even where RAY_ADDRESS or a running one would otherwise be joined
+        ray.init(address=address or "local", num_cpus=None if address else (cpus or os.cpu_count()),
+                 include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
+    except (ConnectionError, RuntimeError, ValueError) as err:
+        where = f"--address {address}: cannot join the Ray cluster" if address else "Ray cannot start here"
+        raise RunError(f"{where} ({' '.join(str(err).split())})") from None
     try:
+        have = float(ray.cluster_resources().get("CPU", 0))
+        if cpus_per_trial > have:
+            raise RunError(f"--cpus-per-trial {cpus_per_trial:g}: Ray has {have:g} CPUs"
+                           f"{f' (the cluster at {address})' if address else ''}; allowed: 0.01..{have:g}")
+        if new:
+            out.mkdir(parents=True, exist_ok=True)
+            write_spec(spec, out / "sweep.json")
         trainable = tune.with_resources(run_trial, {"cpu": cpus_per_trial})
-        if resume and tune.Tuner.can_restore(str(out / "ray" / "sweep")):
+        if restore and tune.Tuner.can_restore(str(out / "ray" / "sweep")):  # vouched for: tuner.pkl is a pickle
             tuner = tune.Tuner.restore(str(out / "ray" / "sweep"), trainable, resume_errored=True, restart_errored=False)
         else:
-            space = {"spec": settings["spec"], "out": str(out), "trial": tune.grid_search(spec.trials())}
+            space = {"spec": asdict(spec), "out": str(out), "trial": tune.grid_search(trials)}
             tuner = tune.Tuner(trainable, param_space=space, run_config=tune.RunConfig(
                 name="sweep", storage_path=str(out / "ray"), verbose=0))
         results = tuner.fit()
     finally:
         ray.shutdown()
     errors = [str(err) for err in (results[i].error for i in range(len(results))) if err]  # a ResultGrid: len, [i]
-    table = aggregate(out)
     if errors:
-        raise RunError(f"{len(errors)} trial(s) failed (the others are aggregated in {out / 'aggregate.md'}): {errors[0]}")
-    return table
+        try:
+            aggregate(out)
+            others = f"the others are aggregated in {out / 'aggregate.md'}"
+        except RunError:
+            others = "none finished"
+        raise RunError(f"{len(errors)} trial(s) failed ({others}): {errors[0]}")

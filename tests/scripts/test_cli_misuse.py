@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from pathlib import Path
 from types import ModuleType
 
@@ -53,6 +54,19 @@ CASES: dict[str, list] = {
         misuse("--out", "{out}", "--hyperparams", "learning_rate"), misuse("--out", "{out}", "--hyperparams", "lr:1,,2"),
         misuse("--out", "{dir}", "--resume", "--smoke", mentions="sweep.json"),
         misuse("--out", "{out}", "--cpus-per-trial", "0"),
+        # checked before Ray starts: the hyperparameters (train.py's checks, per setting), CPUs, the address
+        misuse("--out", "{out}", "--hyperparams", "bogus:1,2"), misuse("--out", "{out}", "--hyperparams", "learning_rate:nan"),
+        misuse("--out", "{out}", "--hyperparams", "learning_rate:.inf"), misuse("--out", "{out}", "--hyperparams", "lr:1,1.0"),
+        misuse("--out", "{out}", "--hyperparams", "learning_rate:lin_x"),
+        misuse("--out", "{out}", "--hyperparams", "batch_size:1"),  # PPO's constructor refuses it
+        misuse("--out", "{out}", "--hyperparams", "d:2020-01-01"),  # not a JSON value
+        misuse("--out", "{out}", "--cpus-per-trial", "100"), misuse("--out", "{out}", "--cpus", "2", "--cpus-per-trial", "3"),
+        misuse("--out", "{out}", "--smoke", "--seeds", "3"), misuse("--out", "{out}", "--trust-pickle"),
+        misuse("--out", "{out}", "--address", "localhost:6379"), misuse("--out", "{out}", "--address", "ray://host"),
+        misuse("--out", "{out}", "--address", "auto", "--cpus", "2", mentions="--cpus"),
+        misuse("--out", "{out}", "--address", "auto", env={"RAY_TMPDIR": "{dir}"}),  # no cluster running: one line
+        *([misuse("--out", "{out}", "--address", "ray://127.0.0.1:1", mentions="ray[client]")]
+          if importlib.util.find_spec("grpc") is None else []),  # Ray Client not installed
     ],
     "bench_train": [*[misuse("--timesteps", v) for v in COUNT], misuse("--out", "{file}"), misuse("--out", "{under_file}")],
     "bench_video": [
