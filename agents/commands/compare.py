@@ -111,6 +111,7 @@ from bboxtune.agents.commands.compare_retune import (
     load_oneshot,
     no_run_config,
 )
+from bboxtune.agents.episodes import check_bank_memory
 from bboxtune.agents.evaluation.evaluate import (
     MAX_BASELINES,
     OTB_SOURCES,
@@ -240,7 +241,8 @@ def env_flags(args: argparse.Namespace) -> str:
 
 def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env, n_runs: int) -> list[EpisodeSpec]:
     """The episodes to score (bboxtune.agents.evaluation.evaluate.evaluation_episodes), after checking the flags that
-    choose them, and that scoring them (the baselines and up to 3 methods per run of ``n_runs``) fits in memory."""
+    choose them, and that scoring them (the baselines and up to 3 methods per run of ``n_runs``) and the
+    ``--train-episodes`` bank the baselines are fitted on fit in memory."""
     source = cast("TrackEnv", env.unwrapped).config.source
     k = args.seeds_per_sequence
     if source in OTB_SOURCES and args.episodes is not None:
@@ -254,12 +256,14 @@ def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env,
     chosen = (n, f"--episodes {n}") if n is not None else None  # otb_tracker: one per sequence × tracker, not chosen
     if k is not None:
         chosen = (len(cast("OTBSource", cast("TrackEnv", env.unwrapped).source).sequences) * k, f"--seeds-per-sequence {k}")
-    if chosen is not None:
-        count, flag = chosen
-        try:
+    try:
+        if chosen is not None:
+            count, flag = chosen
             check_evaluation_memory(count, MAX_BASELINES + 3 * n_runs, args.bootstrap, flag)
-        except MemoryLimitError as err:
-            parser.error(str(err))
+        check_bank_memory(args.train_episodes, cast("TrackEnv", env.unwrapped).source.max_frames(),
+                          f"--train-episodes {args.train_episodes}")
+    except MemoryLimitError as err:
+        parser.error(str(err))
     return evaluation_episodes(env, args.split, episodes=n, seeds_per_sequence=k, seed=args.seed)
 
 

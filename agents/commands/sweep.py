@@ -189,7 +189,7 @@ def check_trials(spec: SweepSpec, trials: list[dict[str, Any]], out: Path) -> No
             cfg = train.new_config(args)
             hp = train.hyperparams_of(cfg, "--hyperparams")
             train.check_tensorboard(cfg)
-            venv = train.validated_envs(cfg, hp, "--algos / --backends / --sources")
+            venv = train.validated_envs(cfg, hp, "--algos / --backends / --sources", "--hyperparams")
             try:
                 train.check_new_model(cfg, hp, venv, f"--hyperparams / agents/hyperparams/{cfg['algo']}.yml")
             finally:

@@ -49,6 +49,8 @@ CASES = [
     misuse("--model", "{run}", "--env-kwargs", "source=video", "--seeds-per-sequence", "2", mentions="--seeds-per-sequence"),
     misuse("--model", "{run}", "--episodes", "1000000000",  # the parser's maximum: ~90 TB of records and resamples
            mentions="--episodes 1000000000 (1000000000 episodes × 14 methods, 2000 bootstrap resamples) needs ~"),
+    misuse("--model", "{run}", "--train-episodes", "1000000000",  # the baselines' train bank: ~40 TB at 500 frames
+           mentions="--train-episodes 1000000000 (1000000000 episodes of up to"),
 ]
 OTB_CASES = [
     misuse("--model", "{run}", "--env-kwargs", "source=otb", "--episodes", "5", env=WITH_OTB,
