@@ -70,5 +70,7 @@ def read_yaml(path: Path) -> Any:
         raise ValueError(f"{where}: invalid YAML: {exc.problem or exc.context}") from None
     except yaml.YAMLError as exc:
         raise ValueError(f"{path}: invalid YAML: {' '.join(str(exc).split())}") from None
+    except ValueError as exc:  # a value the constructor refuses, e.g. an integer of over 4300 digits
+        raise ValueError(f"{path}: invalid YAML: {exc}") from None
     except RecursionError:
         raise ValueError(f"{path}: invalid YAML: nested too deeply") from None

@@ -81,7 +81,10 @@ def methods(models: list[Path], pretrained: list[str]) -> dict[str, mot_eval.Met
     for run_dir in models:
         out[f"model:{run_dir.name}"] = tuner_method(Tuner.from_run(run_dir))
     for name in pretrained:
-        out[f"pretrained:{name}"] = tuner_method(load_pretrained(name))
+        try:
+            out[f"pretrained:{name}"] = tuner_method(load_pretrained(name))
+        except ValueError as err:  # an unknown name: the message lists the installed ones
+            raise ValueError(f"--pretrained: {err}") from None
     return out
 
 

@@ -52,7 +52,7 @@ from bboxtune.envs.data import metrics
 from bboxtune.envs.data.atomic_files import atomic_write
 from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.envs.episodes.actions import ACCEPTS, BACKENDS
-from bboxtune.envs.episodes.config import EnvConfig
+from bboxtune.envs.episodes.config import TRACK_LENGTH_MAX, EnvConfig
 from bboxtune.envs.episodes.video_source import VideoSettings, VideoSource
 from bboxtune.envs.video.camera import frame_shift, run_compensated
 from bboxtune.envs.video.detector import to_gray
@@ -78,7 +78,8 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--trust-pickle", action="store_true",
                    help="--tuned RUN_DIR: accept an old run's pickled vecnormalize.pkl (pickles can run code)")
     p.add_argument("--compensate", action="store_true", help="estimate and compensate camera motion")
-    p.add_argument("--n-frames", type=int_range(2, 10**6), default=200, help="--synthetic: frames")
+    p.add_argument("--n-frames", type=int_range(2, TRACK_LENGTH_MAX), default=200,
+                   help="--synthetic: frames (at most the env's track length limit)")
     p.add_argument("--sequence", default=None, help="--frames: OTB sequence name (default: the folder name)")
     p.add_argument("--otb-root", type=existing_dir, default=None,
                    help="--frames: OTB data folder with sequences.csv (default $OTB_ROOT)")

@@ -73,20 +73,26 @@ class MisusePaths:
         return text.format(**self.names)
 
 
-@pytest.fixture
-def misuse_paths(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> MisusePaths:
-    """Fresh placeholder paths under ``tmp_path``; the working folder is ``tmp_path/work``; ``$OTB_ROOT`` unset."""
-    file, folder, work = tmp_path / "file.txt", tmp_path / "folder", tmp_path / "work"
+def make_misuse_paths(root: Path) -> MisusePaths:
+    """Create the placeholder files and folders under ``root`` (changes no working folder or environment)."""
+    file, folder, work = root / "file.txt", root / "folder", root / "work"
     file.write_text("not what any script expects\n")
     folder.mkdir()
     work.mkdir()
-    (tmp_path / "bad.json").write_text('{"a": 1,\n "b": }\n')
-    (tmp_path / "bad.yml").write_text("a: 1\nb: [1, 2\n")
-    monkeypatch.chdir(work)
+    (root / "bad.json").write_text('{"a": 1,\n "b": }\n')
+    (root / "bad.yml").write_text("a: 1\nb: [1, 2\n")
+    names = {"file": file, "dir": folder, "missing": root / "missing", "under_file": file / "out",
+             "bad_json": root / "bad.json", "bad_yaml": root / "bad.yml", "out": root / "out"}
+    return MisusePaths(root, work, {k: str(v) for k, v in names.items()})
+
+
+@pytest.fixture
+def misuse_paths(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> MisusePaths:
+    """Fresh placeholder paths under ``tmp_path``; the working folder is ``tmp_path/work``; ``$OTB_ROOT`` unset."""
+    paths = make_misuse_paths(tmp_path)
+    monkeypatch.chdir(paths.work)
     monkeypatch.delenv("OTB_ROOT", raising=False)
-    names = {"file": file, "dir": folder, "missing": tmp_path / "missing", "under_file": file / "out",
-             "bad_json": tmp_path / "bad.json", "bad_yaml": tmp_path / "bad.yml", "out": tmp_path / "out"}
-    return MisusePaths(tmp_path, work, {k: str(v) for k, v in names.items()})
+    return paths
 
 
 def snapshot(root: Path) -> dict[str, tuple[bool, int, int]]:
@@ -114,13 +120,28 @@ def check_misuse(main: Callable[[list[str]], object], case: Misuse, paths: Misus
     except SystemExit as exc:
         code = exc.code
     err = capsys.readouterr().err
-    assert code == 2, f"{case}: exit status {code!r}, expected 2; stderr: {err!r}"
-    assert "Traceback" not in err, f"{case}: traceback on stderr: {err}"
+    problem = refusal_problem(code, err, before, snapshot(paths.root), [paths.format(case.mentions)])
+    assert problem is None, f"{case}: {problem}"
+    return err.splitlines()[0]
+
+
+def refusal_problem(code: object, err: str, before: dict, after: dict, mentions: list[str]) -> str | None:
+    """What breaks the misuse contract (module docstring) in a refused run, or None: its exit status ``code``,
+    its stderr ``err``, :func:`snapshot` of the temporary folder before and after, and the texts of which the
+    error line must contain one."""
     lines = err.splitlines()
-    assert len(lines) == 1, f"{case}: expected one line on stderr, got {len(lines)}: {err!r}"
-    assert paths.format(case.mentions) in lines[0], f"{case}: {case.mentions!r} not named in {lines[0]!r}"
-    assert snapshot(paths.root) == before, f"{case}: files were written, changed or removed"
-    return lines[0]
+    if code != 2:
+        return f"exit status {code!r}, expected 2; stderr: {err[-500:]!r}"
+    if "Traceback" in err:
+        return f"traceback on stderr: {err[-2000:]}"
+    if len(lines) != 1:
+        return f"expected one line on stderr, got {len(lines)}: {err[-500:]!r}"
+    if not any(m in lines[0] for m in mentions):
+        return f"none of {mentions[:8]!r} named in {lines[0][:300]!r}"
+    if after != before:
+        changed = sorted(set(after.items()) ^ set(before.items()))
+        return f"files were written, changed or removed: {sorted({name for name, _ in changed})[:5]}"
+    return None
 
 
 def run_script(name: str, *args: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:

@@ -67,6 +67,7 @@ TRACK_VIDEO = [
     misuse("--frames", "{missing}"), misuse("--frames", "{file}"), misuse("--frames", "{dir}", mentions="{dir}"),
     *[misuse("--synthetic", "--init", v) for v in ("1,2,3", "a,b,c,d", "1,2,0,4", "nan,1,2,3", "")],
     *[misuse("--synthetic", "--n-frames", v) for v in (*COUNT, "1")],
+    misuse("--synthetic", "--n-frames", "100001"),  # was allowed up to 10**6: 72.8 GiB MemoryError in the rendering
     misuse("--synthetic", "--seed", "-1"), misuse("--synthetic", "--detector", "surf"),
     misuse("--synthetic", "--filter", "nope"),
     misuse("--synthetic", "--tuned", "{missing}", mentions="--tuned"),

@@ -24,6 +24,7 @@ from bboxtune.envs.data.boxes import MAX_COORD
 from bboxtune.envs.data.number_grammar import parse_float, parse_int
 from bboxtune.envs.data.otb import OTBDataset
 from bboxtune.envs.data.otb_io import MAX_LINE_CHARS, parse_boxes
+from tests.scripts import fuzz_files
 
 REPO = Path(__file__).resolve().parents[3]
 OTB_ROOT = os.environ.get("OTB_ROOT")
@@ -223,3 +224,100 @@ def test_one_mutated_line_of_the_real_sequences_csv(tmp_path_factory):
             assert match and int(match.group(1)) >= index + 1, (str(err), changed[index])
 
     check()
+
+
+# --- the other files a user hands in: generated contents (tests/scripts/fuzz_files.py) -------------------------------
+# Each reader returns, or raises ValueError (RunError is one) whose message starts with the file's path; bounded time.
+def _generated(tmp: Path, name: str, data: bytes) -> Path:
+    path = tmp / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data)
+    return path
+
+
+def _refuses_naming(path: Path, read) -> None:
+    try:
+        read()
+    except ValueError as err:
+        assert str(err).startswith(str(path)), err
+
+
+@settings(max_examples=150, deadline=timedelta(seconds=5))
+@given(data=fuzz_files.contents() | fuzz_files.json_doc() | fuzz_files.config_yml())
+def test_json_and_yaml_readers_name_the_file(data, tmp_path_factory):
+    from bboxtune.agents.readers import read_json, read_yaml
+
+    tmp = tmp_path_factory.mktemp("doc")
+    path = _generated(tmp, "doc", data)
+    _refuses_naming(path, lambda: read_json(path))
+    _refuses_naming(path, lambda: read_yaml(path))
+
+
+@settings(max_examples=100, deadline=timedelta(seconds=5))
+@given(data=fuzz_files.config_yml() | fuzz_files.contents())
+def test_a_run_folders_config_yml_is_checked(data, tmp_path_factory):
+    """compare.py --model, track_video.py --tuned, train.py --resume: load_config's result has every key typed."""
+    from bboxtune.agents.training.runs import MODEL_KEYS, load_config
+
+    run = tmp_path_factory.mktemp("run")
+    path = _generated(run, "config.yml", data)
+    try:
+        cfg = load_config(run)
+    except ValueError as err:
+        assert str(err).startswith(str(path)), err
+        return
+    assert all(isinstance(cfg[k], kind) for k, kind in MODEL_KEYS.items())
+
+
+@settings(max_examples=150, deadline=timedelta(seconds=5))
+@given(data=fuzz_files.seqinfo() | fuzz_files.contents())
+def test_seqinfo_ini_gives_a_frame_rate_in_range_or_names_the_file(data, tmp_path_factory):
+    from bboxtune.agents.smoothing.mot_smooth import FPS_RANGE, read_seqinfo_fps
+
+    path = _generated(tmp_path_factory.mktemp("seq"), "seqinfo.ini", data)
+    try:
+        fps = read_seqinfo_fps(path)
+    except ValueError as err:
+        assert str(err).startswith(str(path)), err
+        return
+    assert FPS_RANGE[0] <= fps <= FPS_RANGE[1]
+
+
+@settings(max_examples=150, deadline=timedelta(seconds=5))
+@given(data=fuzz_files.sequences_csv("mot") | fuzz_files.contents())
+def test_mot_sequences_csv_rows_or_a_named_line(data, tmp_path_factory):
+    from bboxtune.envs.data.mot_io import read_sequences_csv
+
+    root = tmp_path_factory.mktemp("mot")
+    path = _generated(root, "sequences.csv", data)
+    try:
+        rows = read_sequences_csv(root)
+    except ValueError as err:
+        assert str(err).startswith(str(path)), err
+        return
+    assert all(r.fps >= 1 and r.frames >= 1 for r in rows.values())
+
+
+@settings(max_examples=200, deadline=timedelta(seconds=5))
+@given(items=st.lists(st.text(max_size=12) | st.tuples(st.sampled_from(["lr", "n_steps", "x"]), st.sampled_from(":="),
+                                                       fuzz_files.token()).map("".join), max_size=4))
+def test_key_values_of_hyperparams_give_a_dict_or_name_the_flag(items):
+    """--hyperparams / --env-kwargs KEY:VALUE items (YAML values): how hyperparameter YAML enters train.py."""
+    from bboxtune.agents.cli import key_values
+
+    try:
+        out = key_values("--hyperparams", items, separators=":")
+    except ValueError as err:
+        assert str(err).startswith("--hyperparams"), err
+        return
+    assert len(out) == len(items)
+
+
+def test_a_yaml_integer_of_10000_digits_is_named(tmp_path):
+    """yaml.safe_load's int() refuses over 4300 digits with a plain ValueError: it escaped unnamed."""
+    from bboxtune.agents.readers import read_yaml
+
+    path = tmp_path / "config.yml"
+    path.write_text("seed: " + "7" * 10_000 + "\n")
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(path))}: invalid YAML: Exceeds the limit"):
+        read_yaml(path)
