@@ -129,9 +129,22 @@ nonnegative_int = int_range(0)
 positive_float = float_range(0.0, low_open=True)
 
 
+NAME_MAX, PATH_MAX = 255, 4095  # bytes of one name in a path and of a whole path (Linux; other systems allow less)
+
+
+def _path(text: str) -> Path:
+    """``text`` as a path, refused (ArgumentTypeError) where a name in it or the whole path is longer than the
+    system takes (:data:`NAME_MAX`, :data:`PATH_MAX` bytes): checked here, as ``exists()`` would raise OSError."""
+    encoded = os.fsencode(text)
+    if len(encoded) > PATH_MAX or any(len(part) > NAME_MAX for part in encoded.split(b"/")):
+        raise argparse.ArgumentTypeError(f"{shorten(text)}: path too long (allowed: names of at most {NAME_MAX} bytes, "
+                                         f"{PATH_MAX} bytes in all)")
+    return Path(text)
+
+
 def existing_file(text: str) -> Path:
     """``type=`` for a readable regular file."""
-    path = Path(text)
+    path = _path(text)
     if not text or not path.exists():
         raise argparse.ArgumentTypeError(f"{text!r} does not exist")
     if path.is_dir():
@@ -145,7 +158,7 @@ def existing_file(text: str) -> Path:
 
 def existing_dir(text: str) -> Path:
     """``type=`` for a folder that exists and can be listed."""
-    path = Path(text)
+    path = _path(text)
     if not text or not path.exists():
         raise argparse.ArgumentTypeError(f"{text!r} does not exist")
     if not path.is_dir():
@@ -161,7 +174,7 @@ def out_dir(text: str) -> Path:
     an existing folder is the script's to document."""
     if not text:
         raise argparse.ArgumentTypeError("empty path")
-    path = Path(text)
+    path = _path(text)
     existing = next(p for p in (path, *path.parents) if os.path.lexists(p))  # "." / "/" always exist
     if not existing.is_dir():
         what = "exists and is not a folder" if existing == path else f"cannot be created: {existing} is not a folder"

@@ -205,8 +205,10 @@ def new_config(args: argparse.Namespace) -> dict[str, Any]:
                  **({"vec_env": args.vec} if args.vec else {})}
     try:
         hp = load_hyperparams(args.algo, args.env, overrides)
-    except ValueError as err:  # names the YAML file and the key
-        raise RunError(f"--hyperparams: {err}" if args.hyperparams else str(err)) from None
+    except ValueError as err:  # names the YAML file and the key; the flags that override it come first
+        given = [flag for flag, value in (("--hyperparams", args.hyperparams), ("--n-envs", args.n_envs),
+                                          ("--vec", args.vec)) if value]
+        raise RunError(f"{' / '.join(given)}: {err}" if given else str(err)) from None
     return {
         "algo": args.algo, "env_id": args.env, "seed": args.seed,
         "env_kwargs": {"backend": args.backend, "source": args.source, "reward": args.reward, **args.env_kwargs},
