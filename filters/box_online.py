@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from bboxtune.filters.bytetrack_kf import M, BoxKF, _Variance, check_boxes, initiate, update_state
+from bboxtune.filters.bytetrack_kf import BoxKF, M, _Variance, check_boxes, initiate, update_state
 
 
 class OnlineBoxKF:

@@ -46,14 +46,6 @@ class OnlineFilter(Protocol):
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None: ...
 
 
-def take(carry: Carry | History, index: np.ndarray) -> Carry | History:
-    """The carry of the tracks ``index`` (an int array, in its order)."""
-    if isinstance(carry, History):
-        return History(carry.y[index])
-    return Carry(**{f.name: None if getattr(carry, f.name) is None else getattr(carry, f.name)[index]
-                    for f in fields(carry)})
-
-
 def concatenate(first: Carry | History, second: Carry | History) -> Carry | History:
     """The carry of the tracks of ``first`` followed by those of ``second`` (histories of different lengths are
     aligned at their last frame; the shorter one is led by missing frames)."""
@@ -113,7 +105,7 @@ class CarryFilter:
 
     def keep(self, index: np.ndarray) -> None:
         index = np.asarray(index, dtype=np.int64)
-        self._carry = None if len(index) == 0 or self._carry is None else take(self._carry, index)
+        self._carry = None if len(index) == 0 or self._carry is None else self._carry.take(index)
         self.params = {name: values[index] for name, values in self.params.items()}
         self._n = len(index)
 

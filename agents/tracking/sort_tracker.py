@@ -22,14 +22,21 @@ Boxes are xywh px (MOT Challenge). The loop is causal: frame t uses detections u
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from bboxtune import filters
 from bboxtune.agents.tracking.association import assign, iou_matrix
 from bboxtune.agents.tracking.filter_bank import FilterBank
 from bboxtune.agents.tracking.retune import CausalRetune
+
+if TYPE_CHECKING:
+    from bboxtune.agents.smoothing.tuner import Tuner
+
+TUNED = "tuned"  # the filter chosen per track by a tuner (make_tracker)
 
 
 @dataclass(frozen=True)
@@ -163,3 +170,19 @@ class Tracker:
             lo, hi = bounds[t - 1], bounds[t]
             ids, est, sc = self.step(boxes[lo:hi], scores[lo:hi])
             yield FrameResult(t, ids, est, sc)
+
+
+def make_tracker(filter_name: str, tau: float, *, params: Mapping[str, Any] | None = None, tuner: Tuner | None = None,
+                 config: TrackerConfig | None = None, window: int = 10, history: int = 100) -> Tracker:
+    """A tracker whose filter is ``filter_name``: a back end of :mod:`bboxtune.filters` (``sort_kf``, ``bytetrack_kf``,
+    ``kf``, …) with ``params``, or :data:`TUNED`: ``tuner``'s back end re-tuned per track every ``window`` frames
+    from its last ``history`` frames (:class:`CausalRetune`), starting from the back end's stock parameters."""
+    if filter_name != TUNED:
+        if tuner is not None:
+            raise ValueError(f"a tuner is for filter {TUNED!r}; filter {filter_name!r} takes params")
+        return Tracker(FilterBank(filter_name, tau, params), config)
+    if tuner is None or params:
+        raise ValueError(f"filter {TUNED!r} needs a tuner and takes no params (the tuner sets them)")
+    stock = filters.filter_class(tuner.backend).DEFAULTS
+    bank = FilterBank(tuner.backend, tau, {name: stock[name] for name in tuner.parameters})
+    return Tracker(bank, config, CausalRetune(tuner, tau, window=window, history=history))
