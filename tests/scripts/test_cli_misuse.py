@@ -82,6 +82,13 @@ CASES: dict[str, list] = {
         misuse("--out", "{out}", "--otb-root", "{dir}", mentions="--otb-root"),
         *[misuse("--out", "{out}", "--tracks", v) for v in COUNT], misuse("--out", "{out}", "--seed", "-1"),
     ],
+    "eval_mot": [  # the cases that need results and ground truth are in test_eval_mot.py
+        misuse(mentions="--results"), misuse("--results", "{missing}"), misuse("--results", "{file}"),
+        misuse("--results", "{dir}", "--gt-root", "{missing}"), misuse("--results", "{dir}", "--gt-root", "{file}"),
+        misuse("--results", "{dir}", "--gt-root", "{dir}"),  # no <SEQUENCE>/gt/gt.txt in it
+        misuse("--results", "{dir}", "--gt-root", "{dir}", "--out", "{file}"),
+        misuse("--resu", "{dir}", mentions="--resu"),  # flags are not abbreviated
+    ],
     "video_camera": [
         *[misuse("--n-videos", v) for v in COUNT],
         *[misuse("--frames", v) for v in ("3", "0", "abc")],  # the env needs >= 8 frames
