@@ -1,4 +1,4 @@
-"""bboxtune tuners: stable-baselines3 agents and the non-learned baselines, in four parts.
+"""bboxtune tuners: stable-baselines3 agents and the non-learned baselines, in five parts.
 
 * :mod:`bboxtune.agents.policies` — the rule, oracles, global search, the amortised regressor, adaptive KF, IMM.
 * :mod:`bboxtune.agents.training` — algorithms, YAML hyperparameters (``agents/hyperparams/<algo>.yml``, RL Zoo
@@ -8,6 +8,8 @@
 * :mod:`bboxtune.agents.smoothing` — :func:`tune` / :func:`smooth`: a trained tuner's parameters for a track of
   boxes, and the track smoothed with them (:class:`bboxtune.agents.smoothing.tuner.Tuner`); the pretrained tuners
   by name (:mod:`bboxtune.agents.smoothing.pretrained`).
+* :mod:`bboxtune.agents.tracking` — a SORT-style multi-object tracker over a pluggable box filter, optionally re-tuned
+  per track from its own past (``scripts/track_mot.py``).
 
 Below them: :mod:`bboxtune.agents.splits` (train / val / test noise seeds), :mod:`bboxtune.agents.episodes` (pinned
 episodes), :mod:`bboxtune.agents.readers` (JSON / YAML files read with errors that name the file) and

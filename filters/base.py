@@ -83,6 +83,12 @@ class Carry:
                                   for f in fields(self)}
         return Carry(**values)
 
+    def take(self, index: np.ndarray) -> Carry:
+        """The carry of the tracks ``index`` (an int array, in its order; e.g. a tracker's live tracks)."""
+        values: dict[str, Any] = {f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[index]
+                                  for f in fields(self)}
+        return Carry(**values)
+
     def repeat(self, n: int) -> Carry:
         """This one-track carry (B = 1) for ``n`` tracks, e.g. to continue ``n`` candidate parameter sets
         from one state: every field repeated n times along the track axis."""

@@ -197,29 +197,25 @@ class BoxKF(Filter):
         first = detected.argmax(axis=0)
         starts = {int(t): np.flatnonzero(waiting & (first == t)) for t in np.unique(first[waiting])}
         means = np.empty((T, 1 if positions_only else 2, M, n))
-        mean, P00, P11, paired, rates = X[_P:_V + 1], X[_P00], X[_P11], X[_P:_P01 + 1:2], X[_V:_P11 + 1:3]
         for t in range(T):
-            # predict (h: the current mean height): x ← F x, P ← F P Fᵀ + Q per 2×2 block
-            self._before_predict(X)
-            q = Q.at(X[_P, 3])
-            P00 += X[_P01]  # P00 + 2 P01 + P11 = P00 + P01 + (P01 + P11)
-            paired += rates  # p += v, P01 += P11
-            P00 += X[_P01]
-            X[_P00:] += q  # P00 += q_p, P11 += q_v
-            # update (h: the predicted height): S = H P Hᵀ + R, K = P Hᵀ S⁻¹ = [K0, K1], P ← P − K S Kᵀ
-            K = X[_P01:_P00 + 1] / (P00 + R.at(X[_P, 3]))  # [K1, K0]
-            if gated[t]:
-                K *= gate[t]
-            mean += K[::-1] * (z[t] - X[_P])
-            P11 -= K[0] * X[_P01]
-            X[_P01:_P00 + 1] -= K[1] * X[_P01:_P00 + 1]  # P01, P00 times (1 − K0)
+            self.predict_state(X, Q)
+            update_state(X, z[t], R, gate[t] if gated[t] else None)
             if t in starts:  # initiate: mean [m, 0], P₀ from the detection's height
                 rows = starts[t]
-                m = z[t][:, rows]
-                X[_P][:, rows], X[_V][:, rows], X[_P01][:, rows] = m, 0.0, 0.0
-                X[_P00:][..., rows] = P_start.at(m[3], rows)
-            means[t] = X[_P] if positions_only else mean
+                initiate(X, z[t][:, rows], P_start, rows)
+            means[t] = X[_P] if positions_only else X[_P:_V + 1]
         return means
+
+    def predict_state(self, X: np.ndarray, Q: _Variance) -> None:
+        """The predict step on state X (5, 4, n), in place (h: the current mean height): x ← F x, P ← F P Fᵀ + Q per
+        2×2 block."""
+        self._before_predict(X)
+        q = Q.at(X[_P, 3])
+        P00 = X[_P00]
+        P00 += X[_P01]  # P00 + 2 P01 + P11 = P00 + P01 + (P01 + P11)
+        X[_P:_P01 + 1:2] += X[_V:_P11 + 1:3]  # p += v, P01 += P11
+        P00 += X[_P01]
+        X[_P00:] += q  # P00 += q_p, P11 += q_v
 
     def _check_began_finite(self, states: np.ndarray, began: np.ndarray, rows: slice) -> None:
         """Every state (n, T, k) where a track has ``began`` (T, n) must be finite (it is within the documented ranges:
@@ -267,6 +263,25 @@ class BoxKF(Filter):
         tau = self.model.tau
         return np.stack([carry.x[:, :M].T, carry.x[:, M:].T * tau, blocks[..., 0, 1].T * tau, blocks[..., 0, 0].T,
                          blocks[..., 1, 1].T * tau**2])
+
+
+def update_state(X: np.ndarray, z: np.ndarray, R: _Variance, gate: np.ndarray | None) -> None:
+    """The update step on state X (5, 4, n) with measured coordinates z (4, n), in place (h: the predicted height):
+    S = H P Hᵀ + R, K = P Hᵀ S⁻¹ = [K0, K1], P ← P − K S Kᵀ; ``gate`` (n,) 0 where a track has no detection (its
+    z is 0 there: predict only), None when every track has one."""
+    K = X[_P01:_P00 + 1] / (X[_P00] + R.at(X[_P, 3]))  # [K1, K0]
+    if gate is not None:
+        K *= gate
+    X[_P:_V + 1] += K[::-1] * (z - X[_P])
+    X[_P11] -= K[0] * X[_P01]
+    X[_P01:_P00 + 1] -= K[1] * X[_P01:_P00 + 1]  # P01, P00 times (1 − K0)
+
+
+def initiate(X: np.ndarray, m: np.ndarray, P_start: _Variance, rows: np.ndarray) -> None:
+    """Start the tracks ``rows`` of state X (5, 4, n) at their first measured coordinates m (4, len(rows)), in place:
+    mean [m, 0], P₀ from the detection's height."""
+    X[_P][:, rows], X[_V][:, rows], X[_P01][:, rows] = m, 0.0, 0.0
+    X[_P00:][..., rows] = P_start.at(m[3], rows)
 
 
 class ByteTrackKF(BoxKF):

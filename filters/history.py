@@ -42,6 +42,10 @@ class History:
         """The history of tracks ``rows``."""
         return History(self.y[rows])
 
+    def take(self, index: np.ndarray) -> History:
+        """The history of the tracks ``index`` (an int array, in its order)."""
+        return History(self.y[index])
+
     def repeat(self, n: int) -> History:
         """This one-track history (B = 1) for ``n`` tracks (e.g. ``n`` candidate parameter sets): a broadcast view,
         not ``n`` copies."""

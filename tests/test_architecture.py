@@ -18,7 +18,8 @@ NAMESPACE = "bboxtune"
 LAYERS = (("filters",), ("envs.data",), ("envs.video",), ("envs.episodes",),
           ("envs", "envs.track_env", "envs.tune_env", "envs.retune_env", "envs.vector", "envs.render"),
           ("agents.readers", "agents.cli", "agents.splits", "agents.episodes"), ("agents.policies",), ("agents.training",),
-          ("agents.evaluation",), ("agents.smoothing", "agents", "agents.reproduce"), ("agents.commands",))
+          ("agents.evaluation",), ("agents.smoothing", "agents", "agents.reproduce"), ("agents.tracking",),
+          ("agents.commands",))
 # imports inside functions that stay, with the reason: an optional extra (ray, tensorboard; filterpy of the test
 # extra), or torch / SB3 deferred until a model is loaded (agents.smoothing.tuner is imported by every ``import
 # bboxtune.agents``;

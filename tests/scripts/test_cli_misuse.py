@@ -68,6 +68,8 @@ CASES: dict[str, list] = {
         *([misuse("--out", "{out}", "--address", "ray://127.0.0.1:1", mentions="ray[client]")]
           if importlib.util.find_spec("grpc") is None else []),  # Ray Client not installed
     ],
+    "bench_track": [*[misuse("--repeat", v) for v in COUNT], misuse("--filters", "nope"),
+                    misuse("--mot-root", "{missing}"), misuse("--mot-root", "{dir}")],
     "bench_train": [*[misuse("--timesteps", v) for v in COUNT], misuse("--out", "{file}"), misuse("--out", "{under_file}")],
     "bench_video": [
         *[misuse(flag, v) for flag in ("--videos", "--frames") for v in COUNT],
@@ -79,6 +81,13 @@ CASES: dict[str, list] = {
         misuse("--out", "{out}", "--otb-root", "{missing}"), misuse("--out", "{out}", "--otb-root", "{file}"),
         misuse("--out", "{out}", "--otb-root", "{dir}", mentions="--otb-root"),
         *[misuse("--out", "{out}", "--tracks", v) for v in COUNT], misuse("--out", "{out}", "--seed", "-1"),
+    ],
+    "eval_mot": [  # the cases that need results and ground truth are in test_eval_mot.py
+        misuse(mentions="--results"), misuse("--results", "{missing}"), misuse("--results", "{file}"),
+        misuse("--results", "{dir}", "--gt-root", "{missing}"), misuse("--results", "{dir}", "--gt-root", "{file}"),
+        misuse("--results", "{dir}", "--gt-root", "{dir}"),  # no <SEQUENCE>/gt/gt.txt in it
+        misuse("--results", "{dir}", "--gt-root", "{dir}", "--out", "{file}"),
+        misuse("--resu", "{dir}", mentions="--resu"),  # flags are not abbreviated
     ],
     "video_camera": [
         *[misuse("--n-videos", v) for v in COUNT],
@@ -116,7 +125,7 @@ def test_help_prints_usage_and_exits_0(name, capsys):
 def test_every_script_is_covered():
     """A new script gets misuse cases here (or in its own test module, named in ELSEWHERE)."""
     elsewhere = {"train", "compare", "track_video", "otb_eval", "bench_filters", "video_table", "smooth", "mot_eval",
-                 "mot_fit"}  # their helpers' tests
+                 "mot_fit", "track_mot"}  # their helpers' tests
     assert set(HELP) == set(CASES) | elsewhere
 
 

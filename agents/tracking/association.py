@@ -1,0 +1,56 @@
+"""Detection-to-track association of the SORT family, as small pure functions on xywh boxes (px).
+
+* :func:`iou_matrix` — pairwise IoU (:func:`bboxtune.envs.data.metrics.iou` broadcast over pairs); a NaN box
+  overlaps nothing (IoU 0).
+* :func:`assign` — SORT's assignment: where the pairs with IoU > ``threshold`` are already one-to-one they are the
+  matches; otherwise the Hungarian assignment (``scipy.optimize.linear_sum_assignment``) maximising the summed IoU;
+  either way pairs with IoU < ``threshold`` are dropped. (The shortcut matters: maximising the sum can trade one
+  pair above the threshold for two below it.) ByteTrack's ``match_thresh`` 0.8 on the cost 1 − IoU is
+  ``threshold`` 0.2 here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.optimize import linear_sum_assignment
+
+from bboxtune.envs.data.metrics import iou
+
+
+def iou_matrix(a: ArrayLike, b: ArrayLike) -> np.ndarray:
+    """(n, m) IoU of every box of ``a`` (n, 4) with every box of ``b`` (m, 4), xywh px; 0 where either is NaN.
+
+    >>> iou_matrix([[0, 0, 2, 2]], [[1, 0, 2, 2], [5, 5, 1, 1]]).round(3).tolist()
+    [[0.333, 0.0]]
+    """
+    first, second = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    for name, boxes in (("a", first), ("b", second)):
+        if boxes.ndim != 2 or boxes.shape[1] != 4:
+            raise ValueError(f"{name} has shape {boxes.shape}; allowed (n, 4) xywh boxes")
+    return np.nan_to_num(iou(first[:, None, :], second[None, :, :]), nan=0.0)
+
+
+def assign(overlap: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs (k, 2) of rows and columns of ``overlap`` (an IoU matrix) matched as the module docstring says,
+    with IoU >= ``threshold`` (0 < threshold <= 1), then the unmatched rows and the unmatched columns (ascending).
+
+    >>> pairs, rows, cols = assign(np.array([[0.9, 0.1], [0.8, 0.2], [0.0, 0.0]]), 0.3)
+    >>> pairs.tolist(), rows.tolist(), cols.tolist()
+    ([[0, 0]], [1, 2], [1])
+    """
+    if not (isinstance(threshold, (int, float)) and 0 < threshold <= 1):
+        raise ValueError(f"threshold={threshold!r}; allowed 0 < threshold <= 1")
+    n, m = overlap.shape
+    pairs = np.empty((0, 2), dtype=np.int64)
+    if n and m:
+        above = overlap > threshold
+        if above.sum(axis=0).max() <= 1 and above.sum(axis=1).max() <= 1:  # already one-to-one: SORT takes it
+            rows, cols = np.nonzero(above)
+        else:
+            rows, cols = linear_sum_assignment(overlap, maximize=True)
+        keep = overlap[rows, cols] >= threshold
+        pairs = np.stack([rows[keep], cols[keep]], axis=1).astype(np.int64)
+    free_rows, free_cols = np.ones(n, dtype=bool), np.ones(m, dtype=bool)
+    free_rows[pairs[:, 0]], free_cols[pairs[:, 1]] = False, False
+    return pairs, np.flatnonzero(free_rows), np.flatnonzero(free_cols)

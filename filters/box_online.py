@@ -1,0 +1,107 @@
+"""The box Kalman filters of trackers (:class:`bboxtune.filters.bytetrack_kf.BoxKF`: ``bytetrack_kf``, ``sort_kf``) one
+frame at a time over a changing set of tracks, as a tracker runs them: predict every track, update the matched ones,
+start and end tracks between frames.
+
+The steps are the batch recursion's own (:meth:`BoxKF.predict_state`, :func:`bboxtune.filters.bytetrack_kf.update_state`,
+:func:`~bboxtune.filters.bytetrack_kf.initiate`), so a track's estimates equal ``run`` on its detections bit for bit
+(tested), at a fraction of ``run_from``'s per-call cost. Boxes are (cx, cy, w, h) px; parameters per track.
+
+>>> import numpy as np
+>>> from bboxtune import filters
+>>> kf = OnlineBoxKF(filters.make("bytetrack_kf", filters.constant_velocity(1 / 30, ndim=4)))
+>>> kf.start(np.array([[50.0, 60.0, 20.0, 40.0]]))
+>>> kf.update(np.array([[np.nan] * 4])).round(2).tolist()
+[[50.0, 60.0, 20.0, 40.0]]
+>>> kf.update(np.array([[52.0, 61.0, 22.0, 40.0]])).round(2).tolist()
+[[51.85, 60.92, 20.06, 40.0]]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from bboxtune.filters.bytetrack_kf import BoxKF, M, _Variance, check_boxes, initiate, update_state
+
+
+class OnlineBoxKF:
+    """``kf``'s recursion for n live tracks (columns of the state), each with its own parameters; new tracks start
+    with ``kf``'s parameters."""
+
+    def __init__(self, kf: BoxKF) -> None:
+        if not isinstance(kf, BoxKF):
+            raise TypeError(f"kf is a {type(kf).__name__}; allowed: a box filter of a tracker (bytetrack_kf, sort_kf)")
+        self.kf = kf
+        self.X = np.empty((5, M, 0))  # [p, v, P01, P00, P11] per coordinate and track (bboxtune.filters.bytetrack_kf)
+        self.params: dict[str, np.ndarray] = {name: np.empty(0) for name in kf.PER_TRACK}
+        self._noise: tuple[_Variance, _Variance, _Variance] | None = None  # (P₀, Q, R) of the live tracks
+
+    @property
+    def n(self) -> int:
+        """Live tracks."""
+        return self.X.shape[2]
+
+    def _variances(self) -> tuple[_Variance, _Variance, _Variance]:
+        if self._noise is None:
+            noise, n = self.kf._noise(self.params), self.n
+            self._noise = (_Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n)),
+                           _Variance(noise.measurement, (M, n)))
+        return self._noise
+
+    def _boxes(self, X: np.ndarray) -> np.ndarray:
+        boxes = X[0].T.copy()
+        self.kf._to_boxes(boxes)
+        return boxes
+
+    def predict(self) -> np.ndarray:
+        """(n, 4) the boxes every track is expected at in the next frame (the state is not changed)."""
+        X = self.X.copy()
+        self.kf.predict_state(X, self._variances()[1])
+        return self._boxes(X)
+
+    def update(self, boxes: np.ndarray) -> np.ndarray:
+        """One frame: every track predicts, those with a detection (a row of ``boxes`` (n, 4); NaN rows: none)
+        update; returns the estimates (n, 4)."""
+        boxes = np.asarray(boxes, dtype=float)
+        if boxes.shape != (self.n, M):
+            raise ValueError(f"boxes has shape {boxes.shape}; allowed ({self.n}, {M}): one row per live track")
+        check_boxes(boxes[None])
+        _, Q, R = self._variances()
+        z = self.kf._measure(boxes.T[None])[0]  # (4, n)
+        detected = ~np.isnan(z[0])
+        self.kf.predict_state(self.X, Q)
+        update_state(self.X, np.where(detected, z, 0.0), R, None if detected.all() else detected.astype(float))
+        return self._boxes(self.X)
+
+    def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None:
+        """Start k tracks at their first detections ``boxes`` (k, 4) (appended as the last k columns), with
+        ``params`` (``{name: scalar or (k,)}``; default: ``kf``'s)."""
+        boxes = np.asarray(boxes, dtype=float)
+        if boxes.ndim != 2 or boxes.shape[1] != M or np.isnan(boxes).any():
+            raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
+        check_boxes(boxes[None])
+        k = len(boxes)
+        given = type(self.kf)(self.kf.model, **{**self.kf.params, **(params or {})}).params  # validated
+        self.params = {name: np.concatenate([self.params[name], np.broadcast_to(given[name], (k,))])
+                       for name in self.params}
+        self.X = np.concatenate([self.X, np.full((5, M, k), np.nan)], axis=2)
+        self._noise = None
+        rows = np.arange(self.n - k, self.n)
+        initiate(self.X, self.kf._measure(boxes.T[None])[0], self._variances()[0], rows)
+
+    def keep(self, index: np.ndarray) -> None:
+        """Keep only the tracks ``index`` (an int array), in that order."""
+        self.X = self.X[:, :, index]
+        self.params = {name: values[index] for name, values in self.params.items()}
+        self._noise = None
+
+    def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
+        """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on."""
+        given = type(self.kf)(self.kf.model, **{**self.kf.params, **params}).params
+        for name in params:
+            updated = self.params[name].copy()
+            updated[rows] = given[name]
+            self.params[name] = updated
+        self._noise = None

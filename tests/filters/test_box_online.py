@@ -1,0 +1,80 @@
+"""OnlineBoxKF (the trackers' filters one frame at a time over a changing set of tracks) equals the batch recursion."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bboxtune import filters
+from bboxtune.filters.box_online import OnlineBoxKF
+
+MODEL = filters.constant_velocity(1 / 25, ndim=4)
+
+
+def _tracks(rng: np.random.Generator, n: int, T: int) -> np.ndarray:
+    """(n, T, 4) cx, cy, w, h boxes with missing frames and leading NaN (tracks start at different frames)."""
+    steps = rng.normal(0, [2.0, 1.5, 0.4, 0.6], (n, T, 4)).cumsum(axis=1)
+    y = steps + np.array([300.0, 200.0, 40.0, 90.0])
+    y[rng.random((n, T)) < 0.25] = np.nan
+    for i, start in enumerate(rng.integers(0, T // 2, n)):
+        y[i, :start] = np.nan
+        y[i, start] = np.array([300.0, 200.0, 40.0, 90.0]) + rng.normal(0, 3, 4)
+    return y
+
+
+@pytest.mark.parametrize("name", ["bytetrack_kf", "sort_kf"])
+def test_frame_by_frame_with_births_equals_run(name: str) -> None:
+    rng = np.random.default_rng(3)
+    y = _tracks(rng, 12, 80)
+    kf = filters.make(name, MODEL)
+    online = OnlineBoxKF(kf)
+    first = np.argmax(~np.isnan(y[..., 0]), axis=1)
+    order: list[int] = []  # the track of each online column
+    got = np.full(y.shape, np.nan)
+    for t in range(y.shape[1]):
+        if online.n:
+            got[order, t] = online.update(y[order, t])
+        born = [i for i in range(len(y)) if first[i] == t]
+        if born:
+            online.start(y[born, t])
+            got[born, t] = y[born, t]
+            order += born
+    want = kf.positions(y)
+    np.testing.assert_array_equal(got, want)  # the same operations in the same order: bit for bit
+
+
+def test_prediction_ending_tracks_and_new_parameters() -> None:
+    rng = np.random.default_rng(4)
+    y = _tracks(rng, 6, 40)
+    y[:, 0] = np.array([300.0, 200.0, 40.0, 90.0])  # every track starts at frame 0
+    kf = filters.make("bytetrack_kf", MODEL)
+    online = OnlineBoxKF(kf)
+    online.start(y[:, 0])
+    for t in range(1, 20):
+        online.update(y[:, t])
+    predicted = online.predict()
+    est, carry = kf.run_from(y[:, :20])
+    ahead, _ = kf.run_from(np.full((6, 1, 4), np.nan), carry)
+    np.testing.assert_allclose(predicted, ahead[:, 0, :4], rtol=1e-12)
+    online.keep(np.array([4, 1]))
+    online.set_params(np.array([1]), {"std_weight_position": 0.2, "std_weight_velocity": 0.01})
+    got = np.stack([online.update(y[[4, 1], t]) for t in range(20, 40)], axis=1)
+    tuned = filters.make("bytetrack_kf", MODEL, std_weight_position=np.array([0.05, 0.2]),
+                         std_weight_velocity=np.array([1 / 160, 0.01]))
+    want, _ = tuned.run_from(y[[4, 1], 20:], carry.take(np.array([4, 1])))
+    np.testing.assert_allclose(got, want[..., :4], rtol=1e-10, atol=1e-9)
+
+
+def test_bad_input_is_refused() -> None:
+    online = OnlineBoxKF(filters.make("sort_kf", MODEL))
+    with pytest.raises(TypeError, match="kf is a KF"):
+        OnlineBoxKF(filters.make("kf", MODEL))
+    with pytest.raises(ValueError, match="allowed \\(k, 4\\)"):
+        online.start(np.array([[1.0, 2.0, np.nan, 4.0]]))
+    online.start(np.array([[10.0, 10.0, 5.0, 5.0]]))
+    with pytest.raises(ValueError, match="allowed \\(1, 4\\)"):
+        online.update(np.zeros((2, 4)))
+    with pytest.raises(ValueError, match="partly NaN"):
+        online.update(np.array([[1.0, np.nan, 3.0, 4.0]]))
+    with pytest.raises(TypeError, match="std_weight_position"):
+        OnlineBoxKF(filters.make("bytetrack_kf", MODEL)).set_params(np.array([0]), {"std_weight_position": "1"})
