@@ -9,9 +9,10 @@ Every script validates its whole command line before it does any work or writes 
 * ``type=`` functions (argparse puts ``argument --flag:`` before their message): :func:`int_range`
   (:data:`positive_int`, :data:`nonnegative_int`), :func:`float_range` (:data:`positive_float`) — numbers in
   the grammar of :mod:`bboxtune.envs.data.number_grammar` (ASCII decimals: no ``1_0``, no non-ASCII digits, no
-  ``nan``/``inf``); :func:`existing_file`,
-  :func:`existing_dir`, :func:`out_dir` (a folder that exists and is writable, or can be created; nothing
-  is created here), :func:`json_file`, :func:`yaml_file` (parsed; errors name ``file:line:column``),
+  ``nan``/``inf``); :func:`existing_file`, :func:`existing_dir`, :func:`out_dir` (a folder that exists and is
+  writable, or can be created; nothing is created here), :func:`new_file` (a file that does not exist yet, in a
+  writable folder), :func:`json_file`, :func:`yaml_file` (parsed; errors name ``file:line:column``); a path with a
+  name longer than 255 bytes is refused by each;
   :func:`box_xywh` (``x,y,w,h`` with w, h > 0, \\|x\\|, \\|y\\|, w, h <= 1e7 px).
 * :func:`bboxtune.agents.readers.read_json`, :func:`~bboxtune.agents.readers.read_yaml` — the same readers for
   files a script finds itself (ValueError naming ``file:line:column``); :func:`argument_errors` turns the ValueError
@@ -182,6 +183,20 @@ def out_dir(text: str) -> Path:
     if not os.access(existing, os.W_OK | os.X_OK):
         what = "is not writable" if existing == path else f"cannot be created: {existing} is not writable"
         raise argparse.ArgumentTypeError(f"{text} {what}")
+    return path
+
+
+def new_file(text: str) -> Path:
+    """``type=`` for an output file: a path that does not exist yet, in an existing writable folder (nothing is
+    ever overwritten; nothing is created here)."""
+    if not text:
+        raise argparse.ArgumentTypeError("empty path")
+    path = _path(text)
+    if os.path.lexists(path):
+        raise argparse.ArgumentTypeError(f"{text} already exists; choose a new file (nothing is overwritten)")
+    folder = path.parent
+    if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text}: its folder {folder} is not an existing writable folder")
     return path
 
 

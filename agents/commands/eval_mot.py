@@ -24,7 +24,7 @@ from pathlib import Path
 
 import motmetrics as mm
 
-from bboxtune.agents.cli import ArgumentParser, HelpFormatter, argument_errors, command, existing_dir
+from bboxtune.agents.cli import ArgumentParser, HelpFormatter, argument_errors, command, existing_dir, new_file
 from bboxtune.agents.evaluation import mot_metrics
 from bboxtune.agents.evaluation.video_tables import csv_text
 from bboxtune.envs.data.atomic_files import write_text_atomic
@@ -55,17 +55,6 @@ def _gt_root(parser: ArgumentParser, given: Path | None) -> Path:
     if not Path(env).is_dir():
         parser.error(f"--gt-root: ${MOT_ROOT_ENV}={env!r} is not an existing folder")
     return Path(env)
-
-
-def _check_out(parser: ArgumentParser, out: Path | None) -> None:
-    """``--out``: a new file in an existing writable folder."""
-    if out is None:
-        return
-    if not str(out) or os.path.lexists(out):
-        parser.error(f"--out: {str(out)!r} already exists; choose a new file (nothing is overwritten)")
-    folder = out.parent
-    if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
-        parser.error(f"--out {out}: its folder {folder} is not an existing writable folder")
 
 
 def chosen_files(parser: ArgumentParser, results: Path, gt_root: Path,
@@ -99,10 +88,9 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"MOT15 folder with <SEQUENCE>/gt/gt.txt (default: ${MOT_ROOT_ENV})")
     parser.add_argument("--sequences", default=None, type=sequence_names, metavar="A,B",
                         help="score only these sequences (default: every sequence of --gt-root)")
-    parser.add_argument("--out", default=None, type=Path, metavar="FILE.csv",
+    parser.add_argument("--out", default=None, type=new_file, metavar="FILE.csv",
                         help="also write the scores as CSV to this new file")
     args = parser.parse_args(argv)
-    _check_out(parser, args.out)
     files = chosen_files(parser, args.results, _gt_root(parser, args.gt_root), args.sequences)
     accumulators = {}
     for name, (gt_path, results_path) in files.items():  # every file read and checked before any scoring

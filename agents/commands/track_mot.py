@@ -42,13 +42,14 @@ from bboxtune.agents.cli import (
     float_range,
     int_range,
     key_values,
+    new_file,
 )
 from bboxtune.agents.smoothing.mot_smooth import check_fps, find_seqinfo, read_seqinfo_fps
 from bboxtune.agents.smoothing.tuner import Tuner, load_pretrained
-from bboxtune.agents.tracking.sort_tracker import TUNED, TrackerConfig, make_tracker
+from bboxtune.agents.tracking.sort_tracker import TUNED, Tracker, TrackerConfig, make_tracker
 from bboxtune.envs.data.atomic_files import write_text_atomic
 from bboxtune.envs.data.mot import resolve_root
-from bboxtune.envs.data.mot_io import read_detections, read_sequences_csv
+from bboxtune.envs.data.mot_io import Detections, read_detections, read_sequences_csv
 
 FILTERS = ("sort_kf", "bytetrack_kf", *filters.NAMES, TUNED)
 DEFAULT_PRETRAINED = "mot15_det"
@@ -57,7 +58,7 @@ DEFAULT_PRETRAINED = "mot15_det"
 def build_parser() -> ArgumentParser:
     p = ArgumentParser(prog="track_mot.py", description=__doc__, formatter_class=HelpFormatter)
     p.add_argument("--det", required=True, type=existing_file, help="detections, MOT Challenge det.txt format")
-    p.add_argument("--out", required=True, type=Path, help="the result file to write (must not exist)")
+    p.add_argument("--out", required=True, type=new_file, help="the result file to write (must not exist)")
     p.add_argument("--fps", type=float_range(1.0, 1000.0), default=None, help="frame rate (default: seqinfo.ini / sequences.csv)")
     p.add_argument("--mot-root", type=existing_dir, default=None, help="a MOT data folder whose sequences.csv gives the rate")
     p.add_argument("--filter", choices=FILTERS, default="sort_kf", help="the box filter of every track")
@@ -98,6 +99,17 @@ def frame_rate(det: Path, fps: float | None, mot_root: Path | None) -> float:
                      f"{sequence_folder.name!r}; pass --fps F")
 
 
+def track(tracker: Tracker, det: Detections, min_score: float | None, name: str
+          ) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """(frame, ids, boxes, scores) of every frame 1 … the last detection's, detections below ``min_score`` dropped
+    (a progress bar on a terminal)."""
+    keep = det.score >= min_score if min_score is not None else np.ones(len(det.frame), dtype=bool)
+    n_frames = int(det.frame.max()) if len(det.frame) else 0
+    frames = tracker.run(det.frame[keep], det.box[keep], det.score[keep], n_frames)
+    return [(r.frame, r.ids, r.boxes, r.scores)
+            for r in tqdm(frames, total=n_frames, unit="frame", desc=name, disable=None, leave=False)]
+
+
 def result_lines(rows: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]) -> str:
     """The MOT Challenge result text of (frame, ids, boxes, scores) per frame."""
     return "".join(f"{frame},{i},{b[0]:.3f},{b[1]:.3f},{b[2]:.3f},{b[3]:.3f},{s:.3f},-1,-1,-1\n"
@@ -109,10 +121,6 @@ def main(argv: list[str] | None = None) -> int:
     """The command line (module docstring); exit status 0, 2 for bad input (one line)."""
     p = build_parser()
     args = p.parse_args(argv)
-    if args.out.exists():
-        p.error(f"--out {args.out} already exists; choose another file")
-    if not args.out.parent.is_dir():
-        p.error(f"--out {args.out}: folder {args.out.parent} does not exist")
     tuned = args.filter == TUNED
     if not tuned and (args.pretrained or args.model):
         p.error(f"--pretrained / --model: only with --filter {TUNED}")
@@ -134,12 +142,8 @@ def main(argv: list[str] | None = None) -> int:
                                window=args.retune_window, history=args.retune_history)
     except (ValueError, TypeError, OSError) as err:
         p.error(str(err))
-    keep = det.score >= args.min_score if args.min_score is not None else np.ones(len(det.frame), dtype=bool)
-    n_frames = int(det.frame.max()) if len(det.frame) else 0
-    rows = [(r.frame, r.ids, r.boxes, r.scores) for r in
-            tqdm(tracker.run(det.frame[keep], det.box[keep], det.score[keep], n_frames), total=n_frames, unit="frame",
-                 desc=args.det.parent.parent.name, disable=None, leave=False)]
+    rows = track(tracker, det, args.min_score, args.det.parent.parent.name)
     write_text_atomic(args.out, result_lines(rows))
     n_boxes, n_ids = sum(len(r[1]) for r in rows), len({int(i) for r in rows for i in r[1]})
-    print(f"{n_frames} frames, {n_boxes} boxes, {n_ids} identities -> {args.out}")
+    print(f"{len(rows)} frames, {n_boxes} boxes, {n_ids} identities -> {args.out}")
     return 0

@@ -99,6 +99,10 @@ COMMANDS: dict[str, Command] = {
     "bench_filters": Command("bench_filters", ("speed_sections", "wide_section", "long_section"), skip=("--child",)),
     "bench_train": Command("bench_train", ("timed",)),
     "bench_video": Command("bench_video", ("synthetic_video",)),
+    "bench_track": Command("bench_track", ("make_tracker",)),
+    "track_mot": Command("track_mot", ("track",), base=("--det", "{mot}/KITTI-13/det/det.txt", "--out", "{out}"),
+                         valid_skip=("--det",)),
+    "eval_mot": Command("eval_mot", ("mot_metrics.score",)),
 }
 RUN = Path(__file__).resolve().parents[2] / "agents" / "pretrained" / "sim_ufir_cmn"  # {run}: a copy of this run
 TRACKS = {"Car4.txt": "".join(f"{70 + k},{51 + k},107,87\n" for k in range(20)),
