@@ -187,16 +187,17 @@ def out_dir(text: str) -> Path:
 
 
 def new_file(text: str) -> Path:
-    """``type=`` for an output file: a path that does not exist yet, in an existing writable folder (nothing is
-    ever overwritten; nothing is created here)."""
+    """``type=`` for an output file: a path that does not exist yet, whose folder is an existing writable folder or
+    can be created (:func:`out_dir`; the script creates it when it writes). Nothing is ever overwritten; nothing is
+    created here."""
     if not text:
         raise argparse.ArgumentTypeError("empty path")
     path = _path(text)
     if os.path.lexists(path):
         raise argparse.ArgumentTypeError(f"{text} already exists; choose a new file (nothing is overwritten)")
-    folder = path.parent
-    if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
-        raise argparse.ArgumentTypeError(f"{text}: its folder {folder} is not an existing writable folder")
+    if path.name in ("", ".", ".."):
+        raise argparse.ArgumentTypeError(f"{text} is not a file name")
+    out_dir(str(path.parent))
     return path
 
 

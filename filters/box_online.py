@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from bboxtune.filters.base import Filter
 from bboxtune.filters.bytetrack_kf import BoxKF, M, _Variance, check_boxes, initiate, update_state
 
 
@@ -99,9 +100,17 @@ class OnlineBoxKF:
 
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
         """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on."""
-        given = type(self.kf)(self.kf.model, **{**self.kf.params, **params}).params
-        for name in params:
-            updated = self.params[name].copy()
-            updated[rows] = given[name]
-            self.params[name] = updated
+        self.params = track_params(self.kf, self.params, rows, params)
         self._noise = None
+
+
+def track_params(f: Filter, current: Mapping[str, np.ndarray], rows: np.ndarray, params: Mapping[str, Any]
+                 ) -> dict[str, np.ndarray]:
+    """Per-track parameters ``current`` (``{name: (n,)}``) with those of the tracks ``rows`` replaced by ``params``
+    (``{name: scalar or (len(rows),)}``), checked by ``f``'s class as ``filters.make`` checks them."""
+    given = type(f)(f.model, **{**f.params, **params}).params
+    updated = dict(current)
+    for name in params:
+        updated[name] = current[name].copy()
+        updated[name][rows] = given[name]
+    return updated

@@ -24,7 +24,7 @@ LAYERS = (("filters",), ("envs.data",), ("envs.video",), ("envs.episodes",),
 # extra), or torch / SB3 deferred until a model is loaded (agents.smoothing.tuner is imported by every ``import
 # bboxtune.agents``;
 # importing torch there costs seconds)
-DEFERRED = {("agents.training.sweep", "ray"), ("agents.commands.sweep", "ray"), ("agents.commands.train", "tensorboard"),
+DEFERRED = {("agents.training.sweep", "ray"), ("agents.commands.sweep", "ray"), ("agents.training.run_checks", "tensorboard"),
             ("agents.commands.bench_filters", "filterpy"), ("agents.smoothing.tuner", "stable_baselines3"),
             ("agents.smoothing.tuner", "agents.training.runs"), ("agents.smoothing.tuner", "agents.training.run_files")}
 NO_GYMNASIUM = ("filters", "envs.data", "envs.video", "envs.episodes")

@@ -19,9 +19,10 @@ from bboxtune.agents.tracking.sort_tracker import TUNED, make_tracker
 from bboxtune.envs.data.mot import resolve_root
 from bboxtune.envs.data.mot_io import read_detections, read_sequences_csv
 
-NOISE = {"sigma_w": 300.0, "sigma_v": 3.0}  # px/s², px: a plausible setting for pedestrians at 7–30 fps
-PARAMS = {"kf": NOISE, "kf_cmn": {**NOISE, "psi": 0.3}, "ufir": {"horizon": 8}, "ufir_cmn": {"horizon": 8, "psi": 0.3},
-          "ofir": {**NOISE, "horizon": 8}, "oufir": {**NOISE, "horizon": 8}, "fir": {**NOISE, "horizon": 8}, "ukf": NOISE}
+NOISE: dict[str, float] = {"sigma_w": 300.0, "sigma_v": 3.0}  # px/s², px: a plausible setting for pedestrians at 7–30 fps
+PARAMS: dict[str, dict[str, float]] = {
+    "kf": NOISE, "kf_cmn": {**NOISE, "psi": 0.3}, "ufir": {"horizon": 8}, "ufir_cmn": {"horizon": 8, "psi": 0.3},
+    "ofir": {**NOISE, "horizon": 8}, "oufir": {**NOISE, "horizon": 8}, "fir": {**NOISE, "horizon": 8}, "ukf": NOISE}
 
 
 @command

@@ -11,7 +11,8 @@ import time
 
 import numpy as np
 
-from bboxtune.agents.cli import ArgumentParser, argument_errors, command, positive_int
+from bboxtune.agents.cli import ArgumentParser, argument_errors, command, int_range, positive_int
+from bboxtune.envs.episodes.config import TRACK_LENGTH_MAX
 from bboxtune.envs.video.camera import background_shift
 from bboxtune.envs.video.detectors import DETECTORS, detect_video, make_detector
 from bboxtune.envs.video.synthetic import VideoRanges, synthetic_video
@@ -21,7 +22,8 @@ from bboxtune.envs.video.synthetic import VideoRanges, synthetic_video
 def main(argv: list[str] | None = None) -> int:
     p = ArgumentParser(prog="bench_video.py", description=__doc__.split("\n\n")[0])
     p.add_argument("--videos", type=positive_int, default=5, help="synthetic videos (default 5)")
-    p.add_argument("--frames", type=positive_int, default=200, help="frames per video (default 200)")
+    p.add_argument("--frames", type=int_range(1, TRACK_LENGTH_MAX), default=200,
+                   help=f"frames per video, at most {TRACK_LENGTH_MAX} (the envs' longest track; default 200)")
     args = p.parse_args(argv)
     ranges = VideoRanges(n_frames=args.frames)
     with argument_errors(p, "--frames"):

@@ -101,6 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     scores = mot_metrics.score(accumulators)
     rows = [[name, *(row[c] for c in mot_metrics.COLUMNS)] for name, row in scores.items()]
     if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
         write_text_atomic(args.out, csv_text(["sequence", *mot_metrics.COLUMNS], rows))
     print(f"MOT15 scores by motmetrics {mm.__version__} (matches: IoU >= {mot_metrics.MOT_IOU}; "
           f"{len(files)} sequence{'' if len(files) == 1 else 's'})\n")

@@ -51,6 +51,7 @@ from bboxtune.agents.cli import (
     positive_int,
 )
 from bboxtune.agents.commands import train
+from bboxtune.agents.training import run_checks
 from bboxtune.agents.training.algos import ALGOS
 from bboxtune.agents.training.run_files import RunError
 from bboxtune.agents.training.runs import check_free
@@ -187,11 +188,11 @@ def check_trials(spec: SweepSpec, trials: list[dict[str, Any]], out: Path) -> No
         try:
             args = _train_args(train_argv(spec, trial, out / "trials" / trial["name"] / "run"))
             cfg = train.new_config(args)
-            hp = train.hyperparams_of(cfg, "--hyperparams")
-            train.check_tensorboard(cfg)
-            venv = train.validated_envs(cfg, hp, "--algos / --backends / --sources", "--hyperparams")
+            hp = run_checks.hyperparams_of(cfg, "--hyperparams")
+            run_checks.check_tensorboard(cfg)
+            venv = run_checks.validated_envs(cfg, hp, "--algos / --backends / --sources", "--hyperparams")
             try:
-                train.check_new_model(cfg, hp, venv, f"--hyperparams / agents/hyperparams/{cfg['algo']}.yml")
+                run_checks.check_new_model(cfg, hp, venv, f"--hyperparams / agents/hyperparams/{cfg['algo']}.yml")
             finally:
                 venv.close()
         except RunError as err:

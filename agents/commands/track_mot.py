@@ -18,7 +18,7 @@ The frame rate (the filters' tau = 1/fps) is --fps, else the seqinfo.ini beside 
 one above), else the sequences.csv of the data the det file belongs to (three folders up:
 <root>/<sequence>/det/det.txt), else of --mot-root / $MOT_ROOT. --min-score drops detections below it first.
 
-Writes --out (a new file, atomically) in the MOT Challenge result format, one line per reported box:
+Writes --out (a new file, atomically; missing folders created) in the MOT Challenge result format, one line per box:
 frame, id, x, y, w, h, score, -1, -1, -1 (xywh px, the filtered box; score: the matched detection's). Identities
 count from 1. Score it with scripts/eval_mot.py. Bad input: one line naming the flag or file:line, exit status 2,
 nothing written.
@@ -143,6 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, TypeError, OSError) as err:
         p.error(str(err))
     rows = track(tracker, det, args.min_score, args.det.parent.parent.name)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out, result_lines(rows))
     n_boxes, n_ids = sum(len(r[1]) for r in rows), len({int(i) for r in rows for i in r[1]})
     print(f"{len(rows)} frames, {n_boxes} boxes, {n_ids} identities -> {args.out}")

@@ -76,8 +76,8 @@ from bboxtune.agents.training.callbacks import (
     restore_eval_state,
 )
 from bboxtune.agents.training.checkpoints import Checkpoint, newest_complete, resume_hint
-from bboxtune.agents.training.footprint import check_training_memory
 from bboxtune.agents.training.hyperparams import VEC_ENVS, Hyperparams, constructor_kwargs, load_hyperparams
+from bboxtune.agents.training.run_checks import check_new_model, check_tensorboard, hyperparams_of, validated_envs
 from bboxtune.agents.training.run_files import (
     PICKLED_REPLAY,
     REPLAY,
@@ -89,20 +89,17 @@ from bboxtune.agents.training.run_files import (
 )
 from bboxtune.agents.training.runs import (
     CONFIG,
-    ENV_ERRORS,
     RESUME_KEYS,
     RunLock,
     check_free,
     claim_run_dir,
     describe_held_features,
     load_config,
-    make_env,
     make_vec,
     observation_names,
 )
 from bboxtune.agents.training.safe_load import load_model, stamp
 from bboxtune.envs.data.atomic_files import atomic_write, write_text_atomic
-from bboxtune.envs.data.memory import MemoryLimitError
 from bboxtune.envs.data.otb import TRACKER_SPLIT
 from bboxtune.envs.episodes.actions import BACKENDS
 from bboxtune.envs.episodes.config import SOURCES, EnvConfig
@@ -113,7 +110,6 @@ if TYPE_CHECKING:
 
 DEFAULT_ENV = "bboxtune/FilterTune-v0"
 RESUME_FLAGS = {"--resume", "--timesteps", "--trust-pickle"}  # the only flags a resume takes: the rest is config.yml's
-MODEL_ERRORS = (ValueError, TypeError, KeyError, AssertionError)  # what SB3 constructors raise for bad settings
 
 
 def build_parser() -> ArgumentParser:
@@ -220,53 +216,6 @@ def new_config(args: argparse.Namespace) -> dict[str, Any]:
                      "torch": str(torch.__version__), "gymnasium": gymnasium.__version__, "numpy": np.__version__},
         "created": time.strftime("%Y-%m-%d %H:%M:%S"),
     }
-
-
-def hyperparams_of(cfg: dict[str, Any], where: str) -> Hyperparams:
-    try:
-        return load_hyperparams(cfg["algo"], cfg["env_id"], cfg["hyperparams"])
-    except ValueError as err:
-        raise RunError(f"{where}: {err}") from None
-
-
-def validated_envs(cfg: dict[str, Any], hp: Hyperparams, where: str, sizes: str) -> VecEnv:
-    """What the worker processes will build, built here first: one env of the train and of the val split (each
-    reset once) and the ``n_envs`` training envs (in this process: batched or DummyVecEnv), which are returned.
-    :class:`RunError` naming ``where`` (the flags or the config file) if any of it fails, or ``sizes`` (where n_envs
-    and the buffer's size are set) if the run would not fit in memory (``bboxtune.agents.training.footprint``)."""
-    env_id, kwargs = cfg["env_id"], cfg["env_kwargs"]
-    try:
-        for split in ("train", "val"):
-            env = make_env(env_id, kwargs, split=split)
-            env.reset(seed=int(cfg["seed"]))
-            env.close()
-            if split == "train":
-                check_training_memory(hp, env)
-        return make_vec(env_id, kwargs, split="train", n_envs=hp.n_envs, seed=int(cfg["seed"]),
-                        vec_env="batched" if hp.vec_env == "batched" else "dummy")
-    except MemoryLimitError as err:
-        raise RunError(f"{sizes}: {err}") from None
-    except ENV_ERRORS as err:
-        why = " ".join(str(err).split()).split(" was raised from the environment creator")[0]  # gymnasium's suffix
-        raise RunError(f"{where}: env {env_id} with {kwargs}: {why}") from None
-
-
-def check_tensorboard(cfg: dict[str, Any]) -> None:
-    if cfg["tensorboard"]:
-        try:
-            import tensorboard  # noqa: F401
-        except ImportError:
-            raise RunError("--tensorboard needs the tensorboard package: pip install tensorboard") from None
-
-
-def check_new_model(cfg: dict[str, Any], hp: Hyperparams, venv: VecEnv, where: str) -> None:
-    """Build (and drop) the run's model on ``venv``: catches settings SB3's constructor refuses."""
-    try:
-        norm = VecNormalize(venv, **hp.normalize) if hp.normalize else venv
-        n_actions = cast("tuple[int, ...]", venv.action_space.shape)[0]  # a Box
-        algo_class(cfg["algo"])(hp.policy, norm, device="cpu", **constructor_kwargs(hp, n_actions))
-    except MODEL_ERRORS as err:
-        raise RunError(f"{where}: the {cfg['algo']} model cannot be built ({' '.join(str(err).split())})") from None
 
 
 def checkpoint_check(cfg: dict[str, Any], hp: Hyperparams, venv: VecEnv, trust_pickle: bool):

@@ -27,7 +27,7 @@ import numpy as np
 from bboxtune import filters
 from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.filters.base import Carry
-from bboxtune.filters.box_online import OnlineBoxKF
+from bboxtune.filters.box_online import OnlineBoxKF, track_params
 from bboxtune.filters.bytetrack_kf import BoxKF
 from bboxtune.filters.history import History
 
@@ -55,8 +55,9 @@ def concatenate(first: Carry | History, second: Carry | History) -> Carry | Hist
                   for h in (first, second)]
         return History(np.concatenate(padded))
     if isinstance(first, Carry) and isinstance(second, Carry):
-        return Carry(**{f.name: None if getattr(first, f.name) is None else
-                        np.concatenate([getattr(first, f.name), getattr(second, f.name)]) for f in fields(Carry)})
+        joined: dict[str, Any] = {f.name: None if getattr(first, f.name) is None else
+                                  np.concatenate([getattr(first, f.name), getattr(second, f.name)]) for f in fields(Carry)}
+        return Carry(**joined)
     raise TypeError(f"cannot join a {type(first).__name__} and a {type(second).__name__}")
 
 
@@ -110,11 +111,7 @@ class CarryFilter:
         self._n = len(index)
 
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
-        given = type(self.f)(self.f.model, **{**self.f.params, **params}).params
-        for name in params:
-            updated = self.params[name].copy()
-            updated[rows] = given[name]
-            self.params[name] = updated
+        self.params = track_params(self.f, self.params, rows, params)
 
 
 class FilterBank:

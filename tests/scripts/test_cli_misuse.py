@@ -73,7 +73,7 @@ CASES: dict[str, list] = {
     "bench_train": [*[misuse("--timesteps", v) for v in COUNT], misuse("--out", "{file}"), misuse("--out", "{under_file}")],
     "bench_video": [
         *[misuse(flag, v) for flag in ("--videos", "--frames") for v in COUNT],
-        misuse("--frames", "2000000"),  # beyond the generator's limit
+        misuse("--frames", "2000000"), misuse("--frames", "100001"),  # beyond the envs' longest track
     ],
     "otb_motion": [
         misuse(mentions="--out"), misuse("--out", "{under_file}"), misuse("--out", "{file}"),

@@ -76,18 +76,19 @@ def _cases(data: Path) -> list:
         misuse(*common, "--sequences", "MOT17-02"), misuse(*common, "--sequences", "KITTI-13,KITTI-13"),
         misuse(*common, "--sequences", ""),
         misuse(*common, "--out", "{file}"), misuse(*common, "--out", "{under_file}"),
-        misuse(*common, "--out", "{missing}/scores.csv"), misuse(*common, "--out", "{dir}"),
+        misuse(*common, "--out", "{under_file}/scores.csv"), misuse(*common, "--out", "{dir}"),
+        misuse(*common, "--out", "{dir}/" + "n" * 300),
     ]
 
 
-@pytest.mark.parametrize("index", range(10))
+@pytest.mark.parametrize("index", range(11))
 def test_misuse(index: int, misuse_paths: MisusePaths, capsys: pytest.CaptureFixture[str],  # noqa: F811
                 monkeypatch: pytest.MonkeyPatch) -> None:
     data = misuse_paths.root / "data"
     make_data(data)
     monkeypatch.delenv("MOT_ROOT", raising=False)
     cases = _cases(data)
-    assert len(cases) == 10
+    assert len(cases) == 11
     check_misuse(eval_mot.main, cases[index], misuse_paths, capsys, monkeypatch)
 
 

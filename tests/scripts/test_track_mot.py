@@ -34,7 +34,7 @@ def _det(folder: Path, fps: int | None = 25) -> Path:
                                   ["--filter", "kf", "--params", "sigma_w=300", "sigma_v=3", "--max-age", "3"]])
 def test_the_result_file_is_the_trackers_output(tmp_path: Path, args: list[str], capsys) -> None:
     det = _det(tmp_path / "Walk")
-    out = tmp_path / "Walk.txt"
+    out = tmp_path / "runs" / "sort" / "Walk.txt"  # the missing folders are created
     assert track_mot.main(["--det", str(det), "--out", str(out), *args]) == 0
     assert "40 frames" in capsys.readouterr().out
     rows = read_results(out)
