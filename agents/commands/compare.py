@@ -132,7 +132,7 @@ from bboxtune.agents.policies.gate_file import write_gate
 from bboxtune.agents.splits import SPLIT_SIZE, SPLITS, EpisodeSpec
 from bboxtune.agents.training.run_files import RunError
 from bboxtune.agents.training.runs import ENV_ERRORS, SB3Policy, check_free, describe_held_features, load_config, make_env
-from bboxtune.agents.training.safe_load import check_env_match
+from bboxtune.agents.training.seed_runs import describe_models, load_learned, load_seed_runs
 from bboxtune.envs.data.atomic_files import write_text_atomic
 from bboxtune.envs.data.memory import MemoryLimitError
 from bboxtune.envs.episodes.config import EnvConfig
@@ -265,48 +265,6 @@ def episode_plan(parser: ArgumentParser, args: argparse.Namespace, env: gym.Env,
     except MemoryLimitError as err:
         parser.error(str(err))
     return evaluation_episodes(env, args.split, episodes=n, seeds_per_sequence=k, seed=args.seed)
-
-
-def load_learned(run: Path, cfg: dict[str, Any], env: gym.Env, trust_pickle: bool, suffix: str = "") -> list[SB3Policy]:
-    """The run's final model and, if the run has one, its best-on-validation model (``<algo>_best``), named with
-    ``suffix``, each checked against the evaluation env ``env``."""
-    learned = [SB3Policy.load(run, "final", trust_pickle=trust_pickle)]
-    if (run / "best_model.zip").exists():
-        learned.append(SB3Policy.load(run, "best", trust_pickle=trust_pickle))
-    for policy, prefix in zip(learned, ("", "best_"), strict=False):
-        policy.name = f"{cfg['algo']}{'_best' if prefix else ''}{suffix}"
-        check_env_match(run / f"{prefix}model.zip", policy.model, cfg, env)
-    return learned
-
-
-def load_seed_runs(runs: list[Path], cfg: dict[str, Any], env: gym.Env, trust_pickle: bool
-                   ) -> tuple[list[SB3Policy], dict[str, list[str]]]:
-    """Several runs of one FilterTune-v0 env (training seeds): their models named ``<algo>[_best]_s<seed>`` and
-    the groups to aggregate ({``<algo>``: names, ``<algo>_best``: names if every run has a best model})."""
-    learned: list[SB3Policy] = []
-    seeds: dict[int, Path] = {}
-    for run in runs:
-        other = load_config(run)
-        if (other["env_id"], other["env_kwargs"], other["algo"]) != (cfg["env_id"], cfg["env_kwargs"], cfg["algo"]):
-            raise RunError(f"{run}: {other['algo']} on {other['env_id']} {other['env_kwargs']}; several --model must be "
-                           f"runs of one algorithm and env ({runs[0]}: {cfg['algo']} on {cfg['env_id']} {cfg['env_kwargs']})")
-        if other["seed"] in seeds:
-            raise RunError(f"{run}: seed {other['seed']} again (also {seeds[other['seed']]}); several --model need distinct "
-                           "seeds")
-        seeds[other["seed"]] = run
-        learned += load_learned(run, other, env, trust_pickle, suffix=f"_s{other['seed']}")
-    algo = cfg["algo"]
-    groups = {name: [p.name for p in learned if p.name.rsplit("_s", 1)[0] == name] for name in (algo, f"{algo}_best")}
-    return learned, {k: v for k, v in groups.items() if len(v) == len(runs)}
-
-
-def describe_models(run: Path | None, runs: list[Path], learned: list[SB3Policy], cfg: dict[str, Any]) -> str:
-    """The settings line of the scored model(s)."""
-    if not runs:
-        return "none (no --model: the re-tuning baselines and window regressors only)"
-    if len(runs) == 1:
-        return f"`{run}` ({learned[0].model.num_timesteps} timesteps, seed {cfg['seed']})"
-    return ", ".join(f"`{r}`" for r in runs) + " (one per training seed)"
 
 
 def describe_episodes(args: argparse.Namespace, source: str, episodes: list[EpisodeSpec]) -> str:
