@@ -114,8 +114,9 @@ class TuneBatch:
         estimates = run_tracks(env.config.backend, [ep.y for ep in episodes], [ep.tau for ep in episodes], params)
         scores = score_tracks(estimates, [ep.truth for ep in episodes])
         reference = {k: np.array([p[1]["reference"][k] for p in self.prepared]) for k in SCORE_KEYS}
-        result = {**scores, "params": params}
         rewards = reward_from(scores, reference, env.config.reward)
+        # step_info reads one row of each: Python lists (the same numbers) index faster than arrays
+        result = {**{k: v.tolist() for k, v in scores.items()}, "params": {k: v.tolist() for k, v in params.items()}}
         infos = [env.step_info(result, i, (p[0], p[1])) for i, p in enumerate(self.prepared)]
         self.prepared = []
         return rewards, infos

@@ -26,6 +26,7 @@ from typing import Any, ClassVar, cast
 import numpy as np
 
 from bboxtune.filters.blocks import block_diagonal, coordinate_blocks
+from bboxtune.filters.finite_check import first_nonfinite
 from bboxtune.filters.model import StateSpaceModel, check_model
 from bboxtune.filters.threads import limited_blas
 from bboxtune.filters.validation import broadcast_params, check_measurements, check_values
@@ -248,9 +249,9 @@ class Filter(ABC):
         """Every estimate (C, T, k) at or after a channel's first finite measurement must be finite: inside the
         documented ranges (:mod:`bboxtune.filters.validation`) it is; a non-finite one is a numerical failure, reported
         rather than returned."""
-        bad = np.maximum.accumulate(~np.isnan(z), axis=1)[..., None] & ~np.isfinite(axes)
-        if bad.any():
-            c, t, _ = np.argwhere(bad)[0]
+        bad = first_nonfinite(axes, z)
+        if bad is not None:
+            c, t = bad
             M = self.model.M
             used = {k: (v[c] if np.ndim(v) == 1 and len(v) == len(z) else v) for k, v in params.items()}
             raise FloatingPointError(

@@ -48,7 +48,7 @@ class TuneVecEnv(VecEnv):
         actions, self._actions = self._actions, None
         rewards, infos = self.batch.step(actions)
         elapsed = round(time.time() - self._t_start, 6)
-        for info, last, reward in zip(infos, self._obs, rewards, strict=False):
+        for info, last, reward in zip(infos, self._obs, rewards.tolist(), strict=False):
             info["terminal_observation"] = last  # every episode ends after its one step
             info["TimeLimit.truncated"] = False
             info["episode"] = {"r": float(reward), "l": 1, "t": elapsed}

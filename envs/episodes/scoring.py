@@ -7,7 +7,9 @@ import numpy as np
 from bboxtune import filters
 from bboxtune.envs.data import metrics
 from bboxtune.envs.data.memory import check_fits
+from bboxtune.envs.episodes import scoring_kernels
 from bboxtune.envs.episodes.actions import ACCEPTS
+from bboxtune.filters import jit
 from bboxtune.filters.bytetrack_kf import SIZE_MIN
 
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
@@ -86,6 +88,32 @@ def hold_missing(est: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
 
 
 def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
+    """Scores of estimates (A, T, 4) against the truth (T, 4) or (A, T, 4): :func:`score_estimates_numpy`'s, computed
+    by the compiled kernel (:mod:`bboxtune.envs.episodes.scoring_kernels`) unless ``$BBOXTUNE_JIT=0``."""
+    if not jit.enabled():
+        return score_estimates_numpy(est, truth)
+    e, g = np.asarray(est, dtype=np.float64), np.asarray(truth, dtype=np.float64)
+    if e.ndim != 3 or e.shape[-1] < 4 or g.ndim not in (2, 3) or g.shape[-2] != e.shape[1] or g.shape[-1] < 4 or \
+            (g.ndim == 3 and g.shape[0] not in (1, e.shape[0])):
+        raise ValueError(f"estimates {e.shape} and truth {g.shape}: allowed (A, T, 4) and (T, 4) or (A, T, 4)")
+    A, T = e.shape[:2]
+    per_row = g.ndim == 3 and g.shape[0] == A > 1
+    lengths = np.full(A, T, dtype=np.int64)
+    starts = np.arange(A, dtype=np.int64) * T
+    truth_starts = starts if per_row else np.zeros_like(starts)
+    return _scores(e.reshape(A * T, e.shape[-1]), g.reshape(-1, g.shape[-1]), starts, truth_starts, lengths)
+
+
+def _scores(est: np.ndarray, truth: np.ndarray, est_starts: np.ndarray, truth_starts: np.ndarray,
+            lengths: np.ndarray) -> dict[str, np.ndarray]:
+    """:func:`bboxtune.envs.episodes.scoring_kernels.score_segments` on rows (N, >= 4) of boxes, as a dict of SCORE_KEYS."""
+    out = scoring_kernels.score_segments(np.ascontiguousarray(est[:, :4]), np.ascontiguousarray(truth[:, :4]),
+                                         est_starts, truth_starts, lengths, scoring_kernels.THRESHOLDS,
+                                         scoring_kernels.RADIUS2)
+    return dict(zip(SCORE_KEYS, out, strict=True))
+
+
+def score_estimates_numpy(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
     """Scores of estimates (A, T, 4) against the truth — (T, 4) shared by all rows (candidates on one
     episode) or (A, T, 4) (one episode per row) — all cx, cy, w, h; each value (A,).
 
@@ -148,13 +176,33 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
 
 
 def score_tracks(estimates: list[np.ndarray], truths: list[np.ndarray]) -> dict[str, np.ndarray]:
-    """:func:`score_estimates` of B tracks, each estimate (T_b, 4) against its own truth (T_b, 4): one call per
-    track length; each value (B,), row b equal to scoring track b alone."""
+    """:func:`score_estimates` of B tracks, each estimate (T_b, 4) against its own truth (T_b, 4); each value (B,),
+    row b equal to scoring track b alone: one kernel call over all tracks (:func:`score_tracks_numpy` unless
+    ``$BBOXTUNE_JIT=0``)."""
+    if not jit.enabled():
+        return score_tracks_numpy(estimates, truths)
+    lengths = np.array([len(t) for t in truths], dtype=np.int64)
+    if len(estimates) != len(truths) or any(len(e) != T for e, T in zip(estimates, lengths.tolist(), strict=False)):
+        raise ValueError(f"{len(estimates)} estimates for {len(truths)} truths; allowed: one of each track's length per track")
+    if not len(truths):
+        return {k: np.empty(0) for k in SCORE_KEYS}
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    return _scores(_rows(estimates), _rows(truths), starts, starts, lengths)
+
+
+def _rows(boxes: list[np.ndarray]) -> np.ndarray:
+    """Arrays (T_b, >= 4) one after the other as C-contiguous float64 rows (ΣT_b, 4), whatever their layout."""
+    out = np.empty((sum(len(b) for b in boxes), 4))
+    return np.concatenate([b[:, :4] for b in boxes], axis=0, out=out)
+
+
+def score_tracks_numpy(estimates: list[np.ndarray], truths: list[np.ndarray]) -> dict[str, np.ndarray]:
+    """The numpy reference of :func:`score_tracks`: :func:`score_estimates_numpy` once per track length."""
     lengths = np.array([len(t) for t in truths])
     out = {k: np.empty(len(truths)) for k in SCORE_KEYS}
     for T in np.unique(lengths):
         rows = np.flatnonzero(lengths == T)
-        scores = score_estimates(np.stack([estimates[r] for r in rows]), np.stack([truths[r] for r in rows]))
+        scores = score_estimates_numpy(np.stack([estimates[r] for r in rows]), np.stack([truths[r] for r in rows]))
         for k in SCORE_KEYS:
             out[k][rows] = scores[k]
     return out
