@@ -26,7 +26,7 @@ from typing import Any, ClassVar, cast
 import numpy as np
 
 from bboxtune.filters.blocks import block_diagonal, coordinate_blocks
-from bboxtune.filters.finite_check import first_nonfinite
+from bboxtune.filters.finite_check import first_nonfinite, write_positions
 from bboxtune.filters.model import StateSpaceModel, check_model
 from bboxtune.filters.threads import limited_blas
 from bboxtune.filters.validation import broadcast_params, check_measurements, check_values
@@ -200,8 +200,7 @@ class Filter(ABC):
                 axes = self._run_axes(z, params, positions_only=True)
             else:
                 axes = self._run_axes_from(z, params, None, u_axes)[0]
-            self._check_finite(axes[..., :1], z, rows, params)
-            out[rows] = axes[..., 0].reshape(rows.stop - rows.start, M, T).transpose(0, 2, 1)
+            self._raise_nonfinite(write_positions(axes, z, out[rows]), z, rows, params)
         return out if batched else out[0]
 
     # typed Any, as positions_from: a back end's carry is its own type (the FIR family's run_from takes and returns
@@ -249,7 +248,10 @@ class Filter(ABC):
         """Every estimate (C, T, k) at or after a channel's first finite measurement must be finite: inside the
         documented ranges (:mod:`bboxtune.filters.validation`) it is; a non-finite one is a numerical failure, reported
         rather than returned."""
-        bad = first_nonfinite(axes, z)
+        self._raise_nonfinite(first_nonfinite(axes, z), z, rows, params)
+
+    def _raise_nonfinite(self, bad: tuple[int, int] | None, z: np.ndarray, rows: slice, params: dict[str, Any]) -> None:
+        """The ``FloatingPointError`` of :meth:`_check_finite` for channel, frame ``bad`` (None: nothing to report)."""
         if bad is not None:
             c, t = bad
             M = self.model.M

@@ -107,17 +107,21 @@ def test_all_missing_and_mismatched_shapes(kernels_on: None) -> None:
         scoring.score_tracks([np.ones((2, 4))], [np.ones((3, 4))])
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=50, deadline=None)
 @given(data=st.data(), C=st.integers(1, 6), T=st.integers(1, 10), k=st.sampled_from([1, 2]), transposed=st.booleans())
-def test_first_nonfinite_kernel_equals_numpy(data: st.DataObject, C: int, T: int, k: int, transposed: bool) -> None:
+def test_finite_checks_kernel_equal_numpy(data: st.DataObject, C: int, T: int, k: int, transposed: bool) -> None:
     values = st.sampled_from([0.0, 1.5, -2.0, np.nan, np.inf, -np.inf])
     z = data.draw(hnp.arrays(float, (C, T), elements=st.sampled_from([1.0, np.nan, np.nan])))
     axes = data.draw(hnp.arrays(float, (C, T, k), elements=st.one_of(st.just(1.0), values)))
     if transposed:  # the FIR family returns (C, 2, T) arrays seen as (C, T, 2)
         axes = np.ascontiguousarray(axes.transpose(0, 2, 1)).transpose(0, 2, 1)
-    want = finite_check.first_nonfinite_numpy(axes, z)
-    assert finite_check.first_nonfinite(axes, z) == want
-    assert finite_check.first_nonfinite(axes[..., :1], z) == finite_check.first_nonfinite_numpy(axes[..., :1], z)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(jit, "ENABLED", True)
+        assert finite_check.first_nonfinite(axes, z) == finite_check.first_nonfinite_numpy(axes, z)
+        M = data.draw(st.sampled_from([m for m in (1, 2, 3) if C % m == 0]))
+        got, want = np.full((C // M, T, M), -7.0), np.full((C // M, T, M), -7.0)
+        assert finite_check.write_positions(axes, z, got) == finite_check.write_positions_numpy(axes, z, want)
+        np.testing.assert_array_equal(got, want)
 
 
 @pytest.mark.parametrize("enabled", [True, False])
