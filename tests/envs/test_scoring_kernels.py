@@ -89,6 +89,24 @@ def test_score_tracks_kernel_equals_numpy(kernels_on: None, data: st.DataObject,
     assert_scores_equal(scoring.score_tracks(estimates, truths), want)
 
 
+@pytest.mark.parametrize("T", [1, 7, 8, 129, 500, 1037, 4099])
+def test_kernel_scores_equal_numpy_bit_for_bit(kernels_on: None, T: int) -> None:
+    """The sums over frames follow numpy's pairwise summation: the scores are the reference's to the last bit (old
+    configurations' episodes are pinned by hash: tests/envs/test_mix_mot.py)."""
+    rng = np.random.default_rng(T)
+    truth = rng.uniform(20.0, 200.0, (T, 4))
+    est = truth + rng.normal(0.0, 8.0, (6, T, 4))
+    truth[rng.random(T) < 0.05] = np.nan
+    est[rng.random((6, T)) < 0.1] = np.nan
+    full = np.nan_to_num(est, nan=1.0)
+    for scored in (est, full):  # with and without missing estimates
+        pairs = [(scoring.score_estimates(scored, truth), scoring.score_estimates_numpy(scored, truth)),
+                 (scoring.score_tracks(list(scored), [truth] * 6), scoring.score_tracks_numpy(list(scored), [truth] * 6))]
+        for got, want in pairs:
+            for k in scoring.SCORE_KEYS:
+                np.testing.assert_array_equal(got[k], want[k], err_msg=k)
+
+
 @pytest.mark.parametrize("shape", [(0, 5, 4), (3, 0, 4)])
 def test_empty_batches(kernels_on: None, shape: tuple[int, int, int]) -> None:
     est, truth = np.zeros(shape), np.zeros(shape[1:])
