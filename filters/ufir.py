@@ -62,17 +62,14 @@ class UFIR(FIRFilter):
         return ls_gains(back_projected_rows(axis.F, axis.H, L) * valid[:, :, None])
 
     def _run_frames(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:
-        """With the kernels on, every frame by the sliding normal equations of :func:`bboxtune.filters.ufir_kernels.ufir_scan`
-        (start-up, full and gappy windows alike, O(1) per frame); else the numpy reference of
-        :meth:`bboxtune.filters.fir_core.FIRFilter._run_frames` (FFT kernel, :meth:`_startup`, :meth:`_masked`)."""
+        """Kernels on: every frame (start-up, full, gappy) by the sliding normal equations of
+        :func:`bboxtune.filters.ufir_kernels.ufir_scan`; off: the reference (FFT kernel, :meth:`_startup`, :meth:`_masked`)."""
         if not jit.enabled():
             return super()._run_frames(z, params, positions_only)
-        C, T = z.shape
-        z = np.ascontiguousarray(z, dtype=float)
+        z, X = np.ascontiguousarray(z, dtype=float), np.empty((*z.shape, 2))
         valid = np.isfinite(z)
-        horizon = np.ascontiguousarray(np.broadcast_to(np.asarray(params["horizon"], dtype=np.int64), (C,)))
-        psi = np.ascontiguousarray(np.broadcast_to(np.asarray(params.get("psi", 0.0), dtype=float), (C,)))
-        X = np.empty((C, T, 2))
+        horizon, psi = (np.ascontiguousarray(np.broadcast_to(np.asarray(params.get(name, 0.0), dtype=kind), z.shape[:1]))
+                        for name, kind in (("horizon", np.int64), ("psi", float)))
         if ufir_scan(z, valid, horizon, psi, X):  # a determined window without a finite estimate
             group, gparams = self._groups(params)
             cs, ns = np.nonzero(np.isnan(X[..., 0]) & np.isnan(X[..., 1]))
@@ -219,7 +216,6 @@ def _clean_gain(tau: float, L: int) -> np.ndarray:
     gain = ls_gains(back_projected_rows(axis.F, axis.H, L)[None])[0]
     gain.setflags(write=False)
     return gain
-
 
 
 def back_projected_rows(F: np.ndarray, H: np.ndarray, L: int) -> np.ndarray:

@@ -31,10 +31,9 @@ from bboxtune.filters import jit
 
 
 @jit.kernel
-def _determined(n_plain: int, n_diff: int, lag_plain: int, lag_diff: int, psi: float) -> bool:
-    """:func:`bboxtune.filters.ufir.determined` of one window (frame sums = negated lag sums: only their difference
-    enters)."""
-    ratio = psi / (1.0 - psi)
+def _determined(n_plain: int, n_diff: int, lag_plain: int, lag_diff: int, ratio: float) -> bool:
+    """:func:`bboxtune.filters.ufir.determined` of one window, ``ratio`` = ψ/(1 − ψ) (frame sums = negated lag sums:
+    only their difference enters)."""
     pair = n_plain == 1 and n_diff == 1 and abs(lag_diff - lag_plain - ratio) <= 1e-9 * (1.0 + ratio)
     return n_plain + n_diff >= 2 and not pair
 
@@ -51,6 +50,7 @@ def ufir_scan(z: np.ndarray, valid: np.ndarray, horizon: np.ndarray, psi: np.nda
         p = psi[c]
         q = 1.0 - p
         q2 = q * q
+        ratio = p / q
         nP = nD = kP = kD = k2P = k2D = 0  # integer moments of each row kind
         sP = sD = tP = tD = 0.0  # data moments Σ z, Σ k z of each row kind
         last = np.nan
@@ -94,7 +94,7 @@ def ufir_scan(z: np.ndarray, valid: np.ndarray, horizon: np.ndarray, psi: np.nda
                         else:
                             sP += z[c, l]
                             tP += (n - l) * z[c, l]
-            if not _determined(nP, nD, kP, kD, p):
+            if not _determined(nP, nD, kP, kD, ratio):
                 X[c, n, 0] = last
                 X[c, n, 1] = 0.0 if last == last else np.nan
                 continue
@@ -105,8 +105,9 @@ def ufir_scan(z: np.ndarray, valid: np.ndarray, horizon: np.ndarray, psi: np.nda
             e1 = -tP - q * tD + p * sD
             det = g00 * g11 - g01 * g01
             if det > 0.0:
-                X[c, n, 0] = (g11 * e0 - g01 * e1) / det
-                X[c, n, 1] = (g00 * e1 - g01 * e0) / det
+                inv = 1.0 / det
+                X[c, n, 0] = (g11 * e0 - g01 * e1) * inv
+                X[c, n, 1] = (g00 * e1 - g01 * e0) * inv
             if not (det > 0.0 and np.isfinite(X[c, n, 0]) and np.isfinite(X[c, n, 1])):
                 X[c, n, 0] = X[c, n, 1] = np.nan
                 failures += 1

@@ -103,3 +103,20 @@ def test_ufir_scan_equals_the_literal_algorithm(missing: str) -> None:
         for m in range(4):
             ref = ufir_iterative(y[b, :, m], axis.F, axis.H, 12, 0.6)
             assert_matches(fast[b][:, [m, 4 + m]][None], ref[None], y[b:b + 1, :, m:m + 1])
+
+
+@settings(max_examples=30, deadline=None)
+@given(shape=shapes, name=st.sampled_from(["oufir", "ofir", "fir"]), data=st.data())
+def test_window_kf_scan_equals_the_reference(shape: tuple[int, int, int, str], name: str, data: st.DataObject) -> None:
+    """OUFIR, OFIR and Kwon's FIR: start-up and gappy windows by the compiled scan vs the numpy KF / associative scan,
+    with per-track horizons and noise ratios (one shared tuning or per track, so that box tracks share compositions)."""
+    seed, B, T, missing = shape
+    y = tracks(seed, B, T, missing)
+    draw = lambda lo, hi: np.array(data.draw(st.lists(st.floats(lo, hi), min_size=B, max_size=B)))  # noqa: E731
+    params: dict[str, object] = {"horizon": np.array(data.draw(st.lists(st.integers(2, T + 10), min_size=B, max_size=B))),
+                                 "sigma_w": draw(0.1, 300.0), "sigma_v": draw(0.5, 20.0)}
+    if data.draw(st.booleans()):
+        params = {key: value[0] for key, value in params.items()}  # type: ignore[index]
+    assert_matches(*both(name, y, **params), y)
+    fast, ref = both(name, y, positions=True, **params)
+    assert_matches(fast, ref, y)
