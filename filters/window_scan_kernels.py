@@ -83,7 +83,7 @@ def _prepend(F: np.ndarray, B: np.ndarray, fr: np.ndarray, y: np.ndarray, t: int
     c00, c01, c11, j00, j01, j11 = Sg[ig, 4], Sg[ig, 5], Sg[ig, 6], Sg[ig, 7], Sg[ig, 8], Sg[ig, 9]
     z0, z1 = j00 * B[0] + j01 * B[1], j01 * B[0] + j11 * B[1]  # J_g B
     rho = 1.0 + c * (B[0] * z0 + B[1] * z1)
-    k = c / rho
+    k, inv_rho = c / rho, 1.0 / rho
     r0, r1 = a00 * B[0] + a01 * B[1], a10 * B[0] + a11 * B[1]  # A_g B
     t00, t01, t10, t11 = a00 - k * r0 * z0, a01 - k * r0 * z1, a10 - k * r1 * z0, a11 - k * r1 * z1  # A_g M
     i00, i01, i11 = j00 - k * z0 * z0, j01 - k * z0 * z1, j11 - k * z1 * z1  # Mᵀ J_g
@@ -99,7 +99,7 @@ def _prepend(F: np.ndarray, B: np.ndarray, fr: np.ndarray, y: np.ndarray, t: int
     for m in range(D.shape[1]):
         yy = y[t, m]
         b0, b1, h0, h1 = Dg[ig, m, 0], Dg[ig, m, 1], Dg[ig, m, 2], Dg[ig, m, 3]
-        gamma = (beta * yy + c * (B[0] * h0 + B[1] * h1)) / rho
+        gamma = (beta * yy + c * (B[0] * h0 + B[1] * h1)) * inv_rho
         n0, n1 = h0 - beta * yy * z0, h1 - beta * yy * z1  # η_g − J_g b_e
         bn = B[0] * n0 + B[1] * n1
         n0, n1 = n0 - k * bn * z0, n1 - k * bn * z1  # Mᵀ (η_g − J_g b_e)
@@ -117,7 +117,8 @@ def _combine(Si: np.ndarray, Di: np.ndarray, ii: int, Sj: np.ndarray, Dj: np.nda
     cj00, cj01 = c00 * J00 + c01 * J01, c00 * J01 + c01 * J11  # C_i J_j
     cj10, cj11 = c01 * J00 + c11 * J01, c01 * J01 + c11 * J11
     det = (1.0 + cj00) * (1.0 + cj11) - cj01 * cj10
-    m00, m01, m10, m11 = (1.0 + cj11) / det, -cj01 / det, -cj10 / det, (1.0 + cj00) / det  # M = (I + C_i J_j)⁻¹
+    inv = 1.0 / det
+    m00, m01, m10, m11 = (1.0 + cj11) * inv, -cj01 * inv, -cj10 * inv, (1.0 + cj00) * inv  # M = (I + C_i J_j)⁻¹
     t00, t01 = A00 * m00 + A01 * m10, A00 * m01 + A01 * m11  # T = A_j M
     t10, t11 = A10 * m00 + A11 * m10, A10 * m01 + A11 * m11
     S[i, 0], S[i, 1] = t00 * a00 + t01 * a10, t00 * a01 + t01 * a11
@@ -139,25 +140,32 @@ def _combine(Si: np.ndarray, Di: np.ndarray, ii: int, Sj: np.ndarray, Dj: np.nda
 
 
 @numba.njit(inline="always", cache=True)
-def _estimate(S: np.ndarray, D: np.ndarray, i: int, m: int, prior: bool, mean0: float, P0: np.ndarray) -> tuple[float, float]:
-    """x_n of composition (S, D[m]): flat prior A J⁻¹ η + b (J scaled to unit size first), or with the prior
-    N([mean0, 0], P0) on the state before the window: x̂ = μ + P0 (I + J P0)⁻¹ (η − J μ), then A x̂ + b."""
-    b0, b1, h0, h1 = D[i, m, 0], D[i, m, 1], D[i, m, 2], D[i, m, 3]
+def _estimate(S: np.ndarray, D: np.ndarray, i: int, prior: bool, y: np.ndarray, a: int, P0: np.ndarray, X: np.ndarray,
+              channels: np.ndarray, n: int, scale: float) -> None:
+    """X[channels[m], n] = scale × x_n of composition (S[i], D[i, m]) for each channel m: flat prior A J⁻¹ η + b
+    (J scaled to unit size first), or with the prior N([y[a, m], 0], P0) on the state before the window:
+    x̂ = μ + P0 (I + J P0)⁻¹ (η − J μ), then A x̂ + b. The 2×2 inverses are formed once for all channels."""
+    j00, j01, j11 = S[i, 7], S[i, 8], S[i, 9]
     if prior:
-        j00, j01, j11 = S[i, 7], S[i, 8], S[i, 9]
         p00, p01, p11 = P0[0, 0], P0[0, 1], P0[1, 1]
-        v0, v1 = h0 - j00 * mean0, h1 - j01 * mean0  # η − J μ
         i00, i01 = 1.0 + j00 * p00 + j01 * p01, j00 * p01 + j01 * p11  # I + J P0
         i10, i11 = j01 * p00 + j11 * p01, 1.0 + j01 * p01 + j11 * p11
-        det = i00 * i11 - i01 * i10
-        w0, w1 = (i11 * v0 - i01 * v1) / det, (i00 * v1 - i10 * v0) / det
-        x0, x1 = mean0 + p00 * w0 + p01 * w1, p01 * w0 + p11 * w1
+        inv = 1.0 / (i00 * i11 - i01 * i10)
     else:
-        scale = max(abs(S[i, 7]), abs(S[i, 9]))
-        j00, j01, j11, h0, h1 = S[i, 7] / scale, S[i, 8] / scale, S[i, 9] / scale, h0 / scale, h1 / scale
-        det = j00 * j11 - j01 * j01
-        x0, x1 = (j11 * h0 - j01 * h1) / det, (j00 * h1 - j01 * h0) / det
-    return S[i, 0] * x0 + S[i, 1] * x1 + b0, S[i, 2] * x0 + S[i, 3] * x1 + b1
+        unit = 1.0 / max(abs(j00), abs(j11))
+        j00, j01, j11 = j00 * unit, j01 * unit, j11 * unit
+        inv = unit / (j00 * j11 - j01 * j01)
+    for m in range(channels.size):
+        h0, h1 = D[i, m, 2], D[i, m, 3]
+        if prior:
+            mean0 = y[a, m]
+            v0, v1 = h0 - j00 * mean0, h1 - j01 * mean0  # η − J μ
+            w0, w1 = (i11 * v0 - i01 * v1) * inv, (i00 * v1 - i10 * v0) * inv
+            x0, x1 = mean0 + p00 * w0 + p01 * w1, p01 * w0 + p11 * w1
+        else:
+            x0, x1 = (j11 * h0 - j01 * h1) * inv, (j00 * h1 - j01 * h0) * inv
+        X[channels[m], n, 0] = (S[i, 0] * x0 + S[i, 1] * x1 + D[i, m, 0]) * scale
+        X[channels[m], n, 1] = (S[i, 2] * x0 + S[i, 3] * x1 + D[i, m, 1]) * scale
 
 
 @jit.kernel
@@ -232,6 +240,4 @@ def window_kf_scan(z: np.ndarray, valid: np.ndarray, members: np.ndarray, L: np.
                 for t in range(lo + 1, n + 1):
                     _append(F, B, fr, y, t, wS, wD, 1, wS, wD, 1)
                 S, D, i = wS, wD, 1
-            for m in range(k):
-                x0, x1 = _estimate(S, D, i, m, prior, y[a, m], P0[r])
-                X[members[r, m], n, 0], X[members[r, m], n, 1] = x0 * sv, x1 * sv
+            _estimate(S, D, i, prior, y, a, P0[r], X, members[r], n, sv)
