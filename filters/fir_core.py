@@ -20,7 +20,10 @@ the paper's batch formula); :meth:`FIRFilter._run_axes` applies it to every chan
 Frame n = 0 is the first frame of every track; outputs are posterior estimates at every frame, float64.
 A back end with a cheaper exact form for the start-up or the NaN windows (the least-squares UFIR family:
 cumulative sums / FFT moment sums, no per-pattern gains; the window-KF family: the associative scan of
-:mod:`bboxtune.filters.window_scan`) overrides ``_startup`` / ``_masked``.
+:mod:`bboxtune.filters.window_scan`) overrides ``_startup`` / ``_masked``; with the compiled kernels on
+(:mod:`bboxtune.filters.jit`) the UFIR family runs every frame in :mod:`bboxtune.filters.ufir_kernels`, the window-KF family
+its start-up and NaN windows in :mod:`bboxtune.filters.window_scan_kernels` (``_compiled_windows``); the numpy paths
+stay as their references.
 """
 
 from __future__ import annotations

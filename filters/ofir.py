@@ -111,7 +111,6 @@ class OFIR(KalmanWindowFIR):
     PER_TRACK: ClassVar[tuple[str, ...]] = ("horizon", "sigma_w", "sigma_v")
     START_COUNT = 1
     PRIOR_AT_START = True
-    PRIOR_AT_START = True
 
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
         out = check_fir_params(params, self.model)
