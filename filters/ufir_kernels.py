@@ -45,12 +45,17 @@ def ufir_scan(z: np.ndarray, valid: np.ndarray, horizon: np.ndarray, psi: np.nda
     solution is not finite (left NaN; the caller reports them)."""
     C, T = z.shape
     failures = 0
+    kind = np.empty(T, np.int8)  # row kind of each frame: 0 none (missing), 1 undifferenced, 2 differenced
+    row = np.empty(T)  # row data z_l: y_l, or y_l − ψ y_{l−1}
     for c in range(C):
         N = horizon[c]
         p = psi[c]
         q = 1.0 - p
         q2 = q * q
         ratio = p / q
+        for l in range(T):
+            kind[l] = 0 if not valid[c, l] else (2 if l > 0 and valid[c, l - 1] else 1)
+            row[l] = z[c, l] - p * z[c, l - 1] if kind[l] == 2 else z[c, l]
         nP = nD = kP = kD = k2P = k2D = 0  # integer moments of each row kind
         sP = sD = tP = tD = 0.0  # data moments Σ z, Σ k z of each row kind
         last = np.nan
@@ -63,37 +68,35 @@ def ufir_scan(z: np.ndarray, valid: np.ndarray, horizon: np.ndarray, psi: np.nda
             tP += sP
             tD += sD
             old = n - N  # the row leaving the window (lag N)
-            if old >= 0 and valid[c, old]:
-                if old > 0 and valid[c, old - 1]:
-                    nD -= 1
-                    kD -= N
-                    k2D -= N * N
-                    sD -= z[c, old] - p * z[c, old - 1]
-                    tD -= N * (z[c, old] - p * z[c, old - 1])
-                else:
-                    nP -= 1
-                    kP -= N
-                    k2P -= N * N
-                    sP -= z[c, old]
-                    tP -= N * z[c, old]
-            if valid[c, n]:  # the new row, lag 0
+            if old >= 0 and kind[old] == 2:
+                nD -= 1
+                kD -= N
+                k2D -= N * N
+                sD -= row[old]
+                tD -= N * row[old]
+            elif old >= 0 and kind[old] == 1:
+                nP -= 1
+                kP -= N
+                k2P -= N * N
+                sP -= row[old]
+                tP -= N * row[old]
+            if kind[n] == 2:  # the new row, lag 0
+                nD += 1
+                sD += row[n]
+            elif kind[n] == 1:
+                nP += 1
+                sP += row[n]
+            if kind[n]:
                 last = z[c, n]
-                if n > 0 and valid[c, n - 1]:
-                    nD += 1
-                    sD += z[c, n] - p * z[c, n - 1]
-                else:
-                    nP += 1
-                    sP += z[c, n]
             if n % N == N - 1:  # data moments afresh: rounding bounded by N steps
                 sP = sD = tP = tD = 0.0
-                for l in range(max(0, n - N + 1), n + 1):
-                    if valid[c, l]:
-                        if l > 0 and valid[c, l - 1]:
-                            sD += z[c, l] - p * z[c, l - 1]
-                            tD += (n - l) * (z[c, l] - p * z[c, l - 1])
-                        else:
-                            sP += z[c, l]
-                            tP += (n - l) * z[c, l]
+                for l in range(n - N + 1, n + 1):
+                    if kind[l] == 2:
+                        sD += row[l]
+                        tD += (n - l) * row[l]
+                    elif kind[l] == 1:
+                        sP += row[l]
+                        tP += (n - l) * row[l]
             if not _determined(nP, nD, kP, kD, ratio):
                 X[c, n, 0] = last
                 X[c, n, 1] = 0.0 if last == last else np.nan
