@@ -20,7 +20,10 @@ the paper's batch formula); :meth:`FIRFilter._run_axes` applies it to every chan
 Frame n = 0 is the first frame of every track; outputs are posterior estimates at every frame, float64.
 A back end with a cheaper exact form for the start-up or the NaN windows (the least-squares UFIR family:
 cumulative sums / FFT moment sums, no per-pattern gains; the window-KF family: the associative scan of
-:mod:`bboxtune.filters.window_scan`) overrides ``_startup`` / ``_masked``.
+:mod:`bboxtune.filters.window_scan`) overrides ``_startup`` / ``_masked``; with the compiled kernels on
+(:mod:`bboxtune.filters.jit`) the UFIR family runs every frame in :mod:`bboxtune.filters.ufir_kernels`, the window-KF family
+its start-up and NaN windows in :mod:`bboxtune.filters.window_scan_kernels` (``_compiled_windows``); the numpy paths
+stay as their references.
 """
 
 from __future__ import annotations
@@ -187,11 +190,13 @@ class FIRFilter(Filter):
         clean = bool(valid.all())
         # positions only: velocities of clean full windows left NaN (start-up and fallback frames still get theirs);
         # with missing samples both (UFIR's _masked corrects windows holding a NaN from the whole kernel estimate)
-        X = correlate(z if clean else np.where(valid, z, 0.0), W[:, :1] if positions_only and clean else W, group,
-                      wrap=True)
+        X = np.ascontiguousarray(correlate(z if clean else np.where(valid, z, 0.0),
+                                           W[:, :1] if positions_only and clean else W, group, wrap=True))
         if X.shape[2] == 1:
             X = np.concatenate([X, np.full_like(X, np.nan)], axis=2)
-        if clean:  # no window holds a NaN
+        if self._compiled_windows(X, z, valid, group, gparams, L_c):
+            pass  # start-up and NaN windows filled by a compiled kernel
+        elif clean:  # no window holds a NaN
             self._startup(X, z, valid, np.zeros((C, T), bool), group, gparams, L_c)
         else:
             t = np.arange(T)
@@ -206,6 +211,12 @@ class FIRFilter(Filter):
         self._check_unobservable(valid, cs, ns, L_c, group, gparams)
         X[cs, ns] = _hold_last(z, valid, cs, ns)
         return X
+
+    def _compiled_windows(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, group: np.ndarray,
+                          gparams: dict[str, np.ndarray], L_c: np.ndarray) -> bool:
+        """Fill the start-up frames and the windows holding a NaN of X (C, T, 2) by a compiled kernel and return
+        True, or return False for the numpy paths :meth:`_startup` / :meth:`_masked` (the default; their reference)."""
+        return False
 
     def _check_unobservable(self, valid: np.ndarray, cs: np.ndarray, ns: np.ndarray, L_c: np.ndarray,
                             group: np.ndarray, gparams: dict[str, np.ndarray]) -> None:

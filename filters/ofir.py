@@ -110,6 +110,7 @@ class OFIR(KalmanWindowFIR):
     DEFAULTS: ClassVar[dict[str, Any]] = {"sigma_w": 1.0, "sigma_v": 1.0, "horizon": None, "P0": None}
     PER_TRACK: ClassVar[tuple[str, ...]] = ("horizon", "sigma_w", "sigma_v")
     START_COUNT = 1
+    PRIOR_AT_START = True
 
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
         out = check_fir_params(params, self.model)

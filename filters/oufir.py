@@ -27,9 +27,11 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.linalg as sla
 
+from bboxtune.filters import jit
 from bboxtune.filters.fir_core import FIRFilter, check_fir_params
 from bboxtune.filters.model import matrix_powers
 from bboxtune.filters.window_scan import DATA, STRUCTURE, BlockLayout, FrameModel, window_estimates
+from bboxtune.filters.window_scan_kernels import window_kf_scan
 
 SCAN_SAMPLES = 1 << 18  # channel-frames per batch of the window scan (3 arrays of 14 floats each: ~90 MB)
 COND_MAX = 1e8  # bound on cond(Ψ_Y/σ_v²) above which the ML least-squares form replaces the Cholesky form
@@ -178,6 +180,7 @@ class KalmanWindowFIR(FIRFilter):
     Q = (σ_w/σ_v)² B Bᵀ). A window with fewer than 2 valid samples gives NaN here (fir_core's fallback)."""
 
     START_COUNT: ClassVar[int]  # valid samples the start state consumes
+    PRIOR_AT_START: ClassVar[bool] = False  # the KF starts after the oldest valid sample a from [y_a, 0], P0 (OFIR)
     CHUNK: ClassVar[int] = 65_536  # windows per vectorised batch of :meth:`_kalman_windows` (bounds memory)
 
     @abstractmethod
@@ -186,6 +189,29 @@ class KalmanWindowFIR(FIRFilter):
         """Start states of P windows at the sample completing START_COUNT valid ones: ``y_first``, ``y_now`` (P,)
         the first valid and the current sample (scaled by σ_v), ``gap`` (P,) frames between them; ``params``
         arrays (P,). Returns x (P, K) and its error covariance (P, K, K), both in units of σ_v."""
+
+    def _compiled_windows(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, group: np.ndarray,
+                          gparams: dict[str, np.ndarray], L_c: np.ndarray) -> bool:
+        """With the kernels on: start-up frames and windows holding a NaN by
+        :func:`bboxtune.filters.window_scan_kernels.window_kf_scan` (the references: :meth:`_startup`, :meth:`_masked`).
+        Runs of 4 consecutive channels (a box track's coordinates) with the same missing frames and parameters share
+        one composition."""
+        if not jit.enabled():
+            return False
+        C, T = z.shape
+        k = 1
+        if C % 4 == 0:
+            quad = np.arange(C).reshape(-1, 4)
+            k = 4 if (group[quad] == group[quad[:, :1]]).all() and (valid[quad] == valid[quad[:, :1]]).all() else 1
+        members = np.arange(C).reshape(-1, k)
+        per = {name: v[group[members[:, 0]]] for name, v in gparams.items()}
+        sv = per["sigma_v"].astype(float)
+        P0 = self.scaled_prior(sv) if self.PRIOR_AT_START else np.zeros((sv.size, 2, 2))  # type: ignore[attr-defined]
+        axis = self.model.axis()
+        window_kf_scan(np.ascontiguousarray(z), valid, members, L_c[members[:, 0]].astype(np.int64),
+                       (per["sigma_w"] / sv) ** 2, sv, self.PRIOR_AT_START, np.ascontiguousarray(P0, dtype=float),
+                       np.ascontiguousarray(axis.F), np.ascontiguousarray(axis.B[:, 0]), X)
+        return True
 
     def _startup(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, holes: np.ndarray, group: np.ndarray,
                  gparams: dict[str, np.ndarray], L_c: np.ndarray) -> None:

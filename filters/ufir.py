@@ -32,9 +32,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from bboxtune.filters import jit
 from bboxtune.filters.fir_core import FIRFilter, check_fir_params
 from bboxtune.filters.lag_moments import lag_moments, lag_moments_real, lag_polynomial, linear_product
 from bboxtune.filters.model import constant_velocity, matrix_powers
+from bboxtune.filters.ufir_kernels import ufir_scan
 
 
 class UFIR(FIRFilter):
@@ -58,6 +60,22 @@ class UFIR(FIRFilter):
         if valid.all():  # the gain depends on L only
             return np.broadcast_to(_clean_gain(axis.tau, L), (valid.shape[0], 2, L))
         return ls_gains(back_projected_rows(axis.F, axis.H, L) * valid[:, :, None])
+
+    def _run_frames(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:
+        """Kernels on: every frame (start-up, full, gappy) by the sliding normal equations of
+        :func:`bboxtune.filters.ufir_kernels.ufir_scan`; off: the reference (FFT kernel, :meth:`_startup`, :meth:`_masked`)."""
+        if not jit.enabled():
+            return super()._run_frames(z, params, positions_only)
+        z, X = np.ascontiguousarray(z, dtype=float), np.empty((*z.shape, 2))
+        valid = np.isfinite(z)
+        horizon, psi = (np.ascontiguousarray(np.broadcast_to(np.asarray(params.get(name, 0.0), dtype=kind), z.shape[:1]))
+                        for name, kind in (("horizon", np.int64), ("psi", float)))
+        if ufir_scan(z, valid, horizon, psi, X):  # a determined window without a finite estimate
+            group, gparams = self._groups(params)
+            cs, ns = np.nonzero(np.isnan(X[..., 0]) & np.isnan(X[..., 1]))
+            self._check_unobservable(valid, cs, ns, horizon + self.EXTRA_SAMPLES, group, gparams)
+            raise FloatingPointError(f"{self.name}: no finite estimate for a window that determines the state")
+        return X
 
     def _startup(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, holes: np.ndarray, group: np.ndarray,
                  gparams: dict[str, np.ndarray], L_c: np.ndarray) -> None:
@@ -198,7 +216,6 @@ def _clean_gain(tau: float, L: int) -> np.ndarray:
     gain = ls_gains(back_projected_rows(axis.F, axis.H, L)[None])[0]
     gain.setflags(write=False)
     return gain
-
 
 
 def back_projected_rows(F: np.ndarray, H: np.ndarray, L: int) -> np.ndarray:

@@ -20,6 +20,7 @@ AXIS = MODEL1.axis()
 class GenericUFIR(UFIR):
     """UFIR through the base class's generic paths only (per-point / per-mask gains, default window_gains)."""
 
+    _run_frames = FIRFilter._run_frames  # not UFIR's compiled scan
     _startup = FIRFilter._startup
     _masked = FIRFilter._masked
     window_gains = FIRFilter.window_gains
@@ -29,6 +30,7 @@ class GenericUFIR(UFIR):
 
 
 class GenericUFIRCMN(UFIRCMN):
+    _run_frames = FIRFilter._run_frames
     _startup = FIRFilter._startup
     _masked = FIRFilter._masked
 

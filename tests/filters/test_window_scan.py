@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from bboxtune import filters
+from bboxtune.filters import jit
 from bboxtune.filters import window_scan as ws
 from bboxtune.filters.oufir import KalmanWindowFIR
 
@@ -99,7 +100,9 @@ def test_windows_with_missing_samples_equal_a_kf_per_window(name: str, whole_box
     """Per-track horizons (so block lengths differ per channel), 30 % missing frames (so OFIR meets windows inside
     one block, which run their own KF), missing as whole boxes (the coordinates of a track share one scan) or per
     coordinate (and a third coordinate as a copy of the first: some tracks share, some do not): the scan's
-    estimates equal those of the KF run over each window."""
+    estimates equal those of the KF run over each window. The numpy scan (the compiled scan's reference, which
+    tests/filters/test_fir_kernels.py checks against it)."""
+    monkeypatch.setattr(jit, "ENABLED", False)
     rng = np.random.default_rng(3)
     y = 100.0 + np.cumsum(rng.normal(size=(5, 150, 2)), axis=1) * 3
     if whole_boxes:
