@@ -1,0 +1,149 @@
+"""Compiled kernels of :mod:`bboxtune.filters.kalman_core`: the gain recursion and the affine application.
+
+Each computes what its numpy reference computes (``kalman_core.gain_recursion``,
+``kalman_core.apply_affine``): the same equations, in the same order of floating-point operations, so that the
+gains come out bit for bit equal to the frame-by-frame numpy path (property tests: tests/filters/test_kalman_kernels.py).
+
+* :func:`gain_recursion` runs each row on its own, frame by frame, and stops a row once its posterior covariance
+  repeats bit for bit after its last change of frame kind (every later frame then repeats it: the map of a frame depends
+  only on its kind and the previous covariance). The frame the reference would stop at — the first multiple-of-8 frame
+  (n % 8 == 7) by which every row repeats and no kind changes — is derived from the rows' stops, so the outputs match.
+* :func:`apply_affine` runs x_n = M_n x_{n−1} + g_n m_n channel by channel (the reference's frame-by-frame form).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from bboxtune.filters import jit
+
+if TYPE_CHECKING:
+    from bboxtune.filters.kalman_core import StepTables
+
+WAIT, INIT = 0, 1  # kalman_core's frame kinds that reset a row
+
+
+def gain_recursion(kinds: np.ndarray, tables: StepTables, P_start: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
+    """:func:`bboxtune.filters.kalman_core.gain_recursion` compiled: affine coefficients (T, 6, G) of the rows' frame
+    ``kinds`` (G, T) with the step ``tables`` from ``P_start`` (2, 2, G), the steady frame (T if none), the posterior
+    covariance (2, 2, G) at the last frame."""
+    f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (tables.A, tables.Q, tables.Lam, tables.D, tables.R,
+                                                                tables.M, P_start)]
+    kinds = np.ascontiguousarray(kinds, dtype=np.int8 if kinds.dtype == np.int8 else np.int32)
+    coef, steady, P_end = _gain_rows(kinds, *f64)
+    return coef, int(steady), P_end
+
+
+def apply_affine(coef: np.ndarray, steady_from: int, row_of_channel: np.ndarray, m: np.ndarray,
+                 x_start: np.ndarray) -> np.ndarray:
+    """:func:`bboxtune.filters.kalman_core.apply_affine` compiled: states (C, T, 2) of x_n = M_n x_{n−1} + g_n m_n,
+    ``coef`` (T, 6, G) constant from frame ``steady_from`` on, ``row_of_channel`` (C,), ``m`` (C, T), ``x_start`` (C, 2)."""
+    return _affine_channels(np.ascontiguousarray(coef, dtype=np.float64), int(steady_from),
+                            np.ascontiguousarray(row_of_channel, dtype=np.int64),
+                            np.ascontiguousarray(m, dtype=np.float64), np.ascontiguousarray(x_start, dtype=np.float64))
+
+
+@jit.kernel
+def _joseph_step(a00: float, a01: float, a10: float, a11: float, q00: float, q01: float, q10: float, q11: float,
+                 l0: float, l1: float, d0: float, d1: float, r: float, c0: float, c1: float, correlated: bool,
+                 p00: float, p01: float, p10: float, p11: float) -> tuple:
+    """``kalman_core.joseph_step`` on scalars (the same expressions): the posterior (n00, n01, n10, n11) and the
+    affine coefficients [(I − K D) A row-major, g0, g1]; ``correlated``: the time-correlated update with M = (c0, c1)."""
+    # P⁻ = A P Aᵀ + Q ([Shmaliy-CMN] Alg. 1 line 5)
+    m00 = (a00 * p00 * a00 + a00 * p01 * a01) + (a01 * p10 * a00 + a01 * p11 * a01) + q00
+    m01 = (a00 * p00 * a10 + a00 * p01 * a11) + (a01 * p10 * a10 + a01 * p11 * a11) + q01
+    m10 = (a10 * p00 * a00 + a10 * p01 * a01) + (a11 * p10 * a00 + a11 * p11 * a01) + q10
+    m11 = (a10 * p00 * a10 + a10 * p01 * a11) + (a11 * p10 * a10 + a11 * p11 * a11) + q11
+    pd0, pd1 = m00 * d0 + m01 * d1, m10 * d0 + m11 * d1
+    if correlated:
+        S = d0 * pd0 + d1 * pd1 + 2.0 * (d0 * c0 + d1 * c1) + r  # S = D P⁻ Dᵀ + D M + Mᵀ Dᵀ + R (G6)
+        k0, k1 = (pd0 + c0) / S, (pd1 + c1) / S  # K = (P⁻ Dᵀ + M) S⁻¹ (G6)
+    else:
+        S = d0 * pd0 + d1 * pd1 + r  # S = D P⁻ Dᵀ + R (line 6)
+        k0, k1 = pd0 / S, pd1 / S  # K = P⁻ Dᵀ S⁻¹ (line 7)
+    i00, i01, i10, i11 = 1.0 - k0 * d0, 0.0 - k0 * d1, 0.0 - k1 * d0, 1.0 - k1 * d1  # I − K D
+    # Joseph form (I − KD) P⁻ (I − KD)ᵀ + K R Kᵀ (line 10)
+    n00 = (i00 * m00 * i00 + i00 * m01 * i01) + (i01 * m10 * i00 + i01 * m11 * i01) + r * k0 * k0
+    n01 = (i00 * m00 * i10 + i00 * m01 * i11) + (i01 * m10 * i10 + i01 * m11 * i11) + r * k0 * k1
+    n10 = (i10 * m00 * i00 + i10 * m01 * i01) + (i11 * m10 * i00 + i11 * m11 * i01) + r * k1 * k0
+    n11 = (i10 * m00 * i10 + i10 * m01 * i11) + (i11 * m10 * i10 + i11 * m11 * i11) + r * k1 * k1
+    if correlated:  # − (I − KD) M Kᵀ − K Mᵀ (I − KD)ᵀ (G7)
+        u0, u1 = i00 * c0 + i01 * c1, i10 * c0 + i11 * c1
+        n00, n01 = n00 - 2.0 * u0 * k0, n01 - (u0 * k1 + k0 * u1)
+        n10, n11 = n10 - (u1 * k0 + k1 * u0), n11 - 2.0 * u1 * k1
+    row = (i00 * a00 + i01 * a10, i00 * a01 + i01 * a11, i10 * a00 + i11 * a10, i10 * a01 + i11 * a11,
+           i00 * l0 + i01 * l1 + k0, i10 * l0 + i11 * l1 + k1)
+    return (n00, n01, n10, n11), row
+
+
+@jit.kernel
+def _gain_rows(kinds: np.ndarray, A: np.ndarray, Q: np.ndarray, Lam: np.ndarray, D: np.ndarray, R: np.ndarray,
+               M: np.ndarray, P_start: np.ndarray) -> tuple:
+    """The rows' recursions one after the other (see the module docstring); ``kinds`` (G, T) int."""
+    G, T = kinds.shape
+    n_kinds = R.shape[0]
+    correlated = np.zeros(n_kinds, np.bool_)  # kinds with a noise cross-covariance in some row (KF-CMN's gaps)
+    for k in range(n_kinds):
+        for g in range(G):
+            if M[k, 0, g] != 0.0 or M[k, 1, g] != 0.0:
+                correlated[k] = True
+    coef = np.empty((T, 6, G))
+    P_end = np.empty((2, 2, G))
+    settled_from, repeat_from = 0, 0  # the last kind change, the last frame a row's covariance starts repeating
+    for g in range(G):
+        last = T - 1
+        while last > 0 and kinds[g, last - 1] == kinds[g, T - 1]:
+            last -= 1
+        settled_from = max(settled_from, last)  # kinds of row g constant from frame `last` on
+        s00, s01, s10, s11 = P_start[0, 0, g], P_start[0, 1, g], P_start[1, 0, g], P_start[1, 1, g]
+        p00, p01, p10, p11 = s00, s01, s10, s11
+        repeats = T
+        for n in range(T):
+            k = kinds[g, n]
+            if k <= INIT:  # WAIT / INIT: x = [m, 0] (INIT) or 0 (WAIT), covariance back to the start one
+                n00, n01, n10, n11 = s00, s01, s10, s11
+                coef[n, 0, g], coef[n, 1, g], coef[n, 2, g], coef[n, 3, g] = 0.0, 0.0, 0.0, 0.0
+                coef[n, 4, g], coef[n, 5, g] = 1.0 if k == INIT else 0.0, 0.0
+            else:
+                (n00, n01, n10, n11), row = _joseph_step(
+                    A[k, 0, 0, g], A[k, 0, 1, g], A[k, 1, 0, g], A[k, 1, 1, g], Q[k, 0, 0, g], Q[k, 0, 1, g],
+                    Q[k, 1, 0, g], Q[k, 1, 1, g], Lam[k, 0, g], Lam[k, 1, g], D[k, 0, g], D[k, 1, g], R[k, g],
+                    M[k, 0, g], M[k, 1, g], correlated[k], p00, p01, p10, p11)
+                coef[n, 0, g], coef[n, 1, g], coef[n, 2, g], coef[n, 3, g], coef[n, 4, g], coef[n, 5, g] = row
+            steady = n00 == p00 and n01 == p01 and n10 == p10 and n11 == p11
+            p00, p01, p10, p11 = n00, n01, n10, n11
+            if n >= last and steady:  # P_n = P_{n−1} and no kind change later: every later frame repeats frame n
+                repeats = n
+                for later in range(n + 1, T):
+                    coef[later, :, g] = coef[n, :, g]
+                break
+        repeat_from = max(repeat_from, repeats)
+        P_end[0, 0, g], P_end[0, 1, g], P_end[1, 0, g], P_end[1, 1, g] = p00, p01, p10, p11
+    stop = max(settled_from, repeat_from)
+    stop += (7 - stop % 8) % 8  # the reference checks frames n % 8 == 7
+    return coef, min(stop, T) if repeat_from < T else T, P_end
+
+
+@jit.kernel
+def _affine_channels(coef: np.ndarray, steady_from: int, row_of_channel: np.ndarray, m: np.ndarray,
+                     x_start: np.ndarray) -> np.ndarray:
+    """x_n = M_n x_{n−1} + g_n m_n channel by channel, the coefficients of frame min(n, ``steady_from``)."""
+    T, _, G = coef.shape
+    C = m.shape[0]
+    used = min(steady_from, T - 1) + 1
+    by_row = np.empty((G, used, 6))  # the coefficients row first: contiguous per channel
+    for n in range(used):
+        for j in range(6):
+            for g in range(G):
+                by_row[g, n, j] = coef[n, j, g]
+    out = np.empty((C, T, 2))
+    for c in range(C):
+        rc = by_row[row_of_channel[c]]
+        p, v = x_start[c, 0], x_start[c, 1]
+        for n in range(T):
+            f = rc[min(n, used - 1)]
+            p, v = f[0] * p + f[1] * v + f[4] * m[c, n], f[2] * p + f[3] * v + f[5] * m[c, n]
+            out[c, n, 0], out[c, n, 1] = p, v
+    return out
