@@ -22,7 +22,7 @@ from bboxtune.filters import jit
 if TYPE_CHECKING:
     from bboxtune.filters.kalman_core import StepTables
 
-WAIT, INIT = 0, 1  # kalman_core's frame kinds that reset a row
+WAIT, INIT, UPDATE_Z = 0, 1, 4  # kalman_core's frame kinds: the two that reset a row, KF-CMN's update on z
 
 
 def gain_recursion(kinds: np.ndarray, tables: StepTables, P_start: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
@@ -147,3 +147,54 @@ def _affine_channels(coef: np.ndarray, steady_from: int, row_of_channel: np.ndar
             p, v = f[0] * p + f[1] * v + f[4] * m[c, n], f[2] * p + f[3] * v + f[5] * m[c, n]
             out[c, n, 0], out[c, n, 1] = p, v
     return out
+
+
+
+def differenced_kinds(kinds: np.ndarray, z: np.ndarray, finite: np.ndarray, y_before: np.ndarray,
+                      missed: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`bboxtune.filters.kf_cmn.differenced_kinds` compiled: the frame kinds (C, T) with every finite y_n that has
+    an earlier finite y_m made kind UPDATE_Z + i (g = n − m − 1 = ``gaps[i]``: 0, then the other gap lengths, sorted),
+    the gaps, every frame's measurement m_n (C, T). ``kinds`` changes in place (int32 beyond 123 gap lengths)."""
+    z, psi = np.ascontiguousarray(z, dtype=np.float64), np.ascontiguousarray(psi, dtype=np.float64)
+    y_before = np.ascontiguousarray(y_before, dtype=np.float64)
+    missed, finite = np.ascontiguousarray(missed, dtype=np.int64), np.ascontiguousarray(finite, dtype=np.bool_)
+    present = np.zeros(z.shape[1] + int(missed.max(initial=0)) + 1, np.bool_)
+    _differenced(kinds, z, finite, y_before, missed, psi, present, np.zeros(0, np.int64), np.empty((0, 0)))
+    lengths = np.flatnonzero(present)
+    if UPDATE_Z + len(lengths) > np.iinfo(np.int8).max:
+        kinds = kinds.astype(np.int32)
+    kind_of_gap = np.zeros(len(present), np.int64)
+    kind_of_gap[lengths] = UPDATE_Z + 1 + np.arange(len(lengths))
+    m = np.empty(z.shape)
+    _differenced(kinds, z, finite, y_before, missed, psi, present, kind_of_gap, m)
+    return kinds, np.concatenate([[0], lengths]), m
+
+
+@jit.kernel
+def _differenced(kinds: np.ndarray, z: np.ndarray, finite: np.ndarray, y_before: np.ndarray, missed: np.ndarray,
+                 psi: np.ndarray, present: np.ndarray, kind_of_gap: np.ndarray, m: np.ndarray) -> None:
+    """One scan of every channel: with an empty ``m``, mark the gap lengths g >= 1 ``present``; else set ``kinds``
+    (UPDATE_Z where g = 0, ``kind_of_gap[g]`` across a gap) and the measurements ``m``."""
+    C, T = z.shape
+    lengths_only = m.shape[0] == 0
+    for c in range(C):
+        last = -1  # the last finite frame of this call so far
+        for n in range(T):
+            if not finite[c, n]:
+                if not lengths_only:
+                    m[c, n] = 0.0
+                continue
+            if last >= 0 or not np.isnan(y_before[c]):  # an earlier finite y: in this call, or the carried one
+                g = n - last - 1 if last >= 0 else n + missed[c]  # g = n − m − 1
+                y_m = z[c, last] if last >= 0 else y_before[c]
+                if lengths_only:
+                    present[g] |= g > 0
+                elif g == 0:
+                    kinds[c, n] = UPDATE_Z
+                    m[c, n] = z[c, n] - psi[c] * y_m  # (G1), g = 0
+                else:
+                    kinds[c, n] = kind_of_gap[g]
+                    m[c, n] = z[c, n] - psi[c] ** (g + 1.0) * y_m  # (G1)
+            elif not lengths_only:
+                m[c, n] = z[c, n]
+            last = n

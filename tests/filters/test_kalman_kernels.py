@@ -1,7 +1,8 @@
-"""The compiled Kalman kernels (bboxtune.filters.kalman_kernels) equal their numpy references in kalman_core to
-≤ 1e-9 relative: the gain recursion on the frame kinds and step tables KF / KF-CMN build from gappy tracks (40–60 %
-of the frames missing in runs, carried starts) and on random tables, its steady-state stop, the affine application,
-and whole filters (kf, kf_cmn, ukf) run with the kernels on and off."""
+"""The compiled Kalman kernels (bboxtune.filters.kalman_kernels) equal their numpy references in kalman_core and
+kf_cmn to ≤ 1e-9 relative: KF-CMN's differencing (frame kinds across gaps, measurements), the gain recursion on the
+frame kinds and step tables KF / KF-CMN build from gappy tracks (40–60 % of the frames missing in runs, carried
+starts) and on random tables, its steady-state stop, the affine application, and whole filters (kf, kf_cmn, ukf) run
+with the kernels on and off."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from bboxtune.filters import jit
 from bboxtune.filters import kalman_core as kc
 from bboxtune.filters import kalman_kernels as kk
 from bboxtune.filters.kf_cmn import cmn_tables, differenced_kinds
+from tests.filters.test_cmn_gaps import runs_missing
 
 AXIS = filters.constant_velocity(0.05).axis()
 RTOL = 1e-9
@@ -42,10 +44,9 @@ def gappy_mask(rng: np.random.Generator, G: int, T: int) -> np.ndarray:
     return finite
 
 
-def cmn_case(seed: int, G: int, T: int, carried: bool) -> tuple[np.ndarray, kc.StepTables, np.ndarray]:
-    """Frame kinds, step tables and start covariances of G KF-CMN rows on gappy tracks, built as ``kf_cmn`` builds
-    them (``carried``: a continued run — priors, carried last measurements and frames missed since)."""
-    rng = np.random.default_rng(seed)
+def differencing_case(rng: np.random.Generator, G: int, T: int, carried: bool) -> tuple[np.ndarray, ...]:
+    """The inputs of ``differenced_kinds`` on G gappy tracks as ``kf_cmn`` builds them (``carried``: a continued run —
+    priors, carried last measurements and frames missed since): kinds, z, finite, y_before, missed, psi."""
     finite = gappy_mask(rng, G, T)
     z = np.where(finite, rng.normal(100.0, 20.0, (G, T)), np.nan)
     psi = rng.choice([0.0, 0.3, 0.9, 0.99], G)
@@ -54,6 +55,13 @@ def cmn_case(seed: int, G: int, T: int, carried: bool) -> tuple[np.ndarray, kc.S
     kinds = kc.frame_kinds(finite, prior, measured)
     y_before = np.where(measured, rng.normal(100.0, 20.0, G), np.nan) if carried else np.full(G, np.nan)
     missed = rng.integers(0, 5, G) if carried else np.zeros(G, np.int64)
+    return kinds, z, finite, y_before, missed, psi
+
+
+def cmn_case(seed: int, G: int, T: int, carried: bool) -> tuple[np.ndarray, kc.StepTables, np.ndarray]:
+    """Frame kinds, step tables and start covariances of G KF-CMN rows on gappy tracks (:func:`differencing_case`)."""
+    rng = np.random.default_rng(seed)
+    kinds, z, finite, y_before, missed, psi = differencing_case(rng, G, T, carried)
     kinds, gaps, _ = differenced_kinds(kinds, z, finite, y_before, missed, psi)
     params = np.stack([10.0 ** rng.uniform(-2, 4, G), 10.0 ** rng.uniform(-1, 2, G), psi], axis=1)
     var = params[:, 1] ** 2 / (1.0 - psi**2)
@@ -70,6 +78,33 @@ def assert_same_gains(kinds: np.ndarray, tables: kc.StepTables, P_start: np.ndar
     assert coef.shape == coef_ref.shape and P_end.shape == P_ref.shape
     assert_close(coef, coef_ref)
     assert_close(P_end, P_ref)
+
+
+def assert_same_differences(kinds: np.ndarray, *inputs: np.ndarray) -> None:
+    got = kk.differenced_kinds(kinds.copy(), *inputs)
+    want = differenced_kinds(kinds.copy(), *inputs)
+    assert got[0].dtype == want[0].dtype
+    np.testing.assert_array_equal(got[0], want[0])  # kinds
+    np.testing.assert_array_equal(got[1], want[1])  # gap lengths
+    assert_close(got[2], want[2])  # measurements m_n
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**16), C=st.integers(1, 6), T=st.integers(1, 150), carried=st.booleans())
+def test_differencing_kernel_equals_reference(seed: int, C: int, T: int, carried: bool) -> None:
+    assert_same_differences(*differencing_case(np.random.default_rng(seed), C, T, carried))
+
+
+def test_differencing_kernel_beyond_123_gap_lengths() -> None:
+    """Gaps of 1 … 130 frames in one call: int32 kinds, as the reference makes them."""
+    rng = np.random.default_rng(5)
+    finite = np.concatenate([np.r_[True, np.zeros(g, bool)] for g in rng.permutation(np.arange(1, 131))] + [[True]])
+    finite = np.stack([finite, ~runs_missing(rng, finite.size)])
+    z = np.where(finite, rng.normal(100.0, 20.0, finite.shape), np.nan)
+    kinds = kc.frame_kinds(finite, prior=np.array([False, True]), measured=np.array([False, True]))
+    y_before, missed, psi = np.array([np.nan, 90.0]), np.array([0, 2]), np.array([0.3, 0.9])
+    assert_same_differences(kinds, z, finite, y_before, missed, psi)
+    assert differenced_kinds(kinds, z, finite, y_before, missed, psi)[0].dtype == np.int32
 
 
 @settings(max_examples=40, deadline=None)
