@@ -90,7 +90,15 @@ def frame_kinds(finite: np.ndarray, prior: bool | np.ndarray, measured: np.ndarr
     The first finite measurement is a standard update (``prior``, bool or per channel (C,)) or the
     initialisation (no prior); later finite frames update on y (KF-CMN turns those with an earlier finite y into
     UPDATE_Z kinds: :func:`bboxtune.filters.kf_cmn.differenced_kinds`). A continued run (``Filter.run_from``) passes
-    ``measured`` (C,): channels whose first finite measurement lies before frame 0."""
+    ``measured`` (C,): channels whose first finite measurement lies before frame 0. Compiled where
+    :func:`bboxtune.filters.jit.enabled` (:mod:`bboxtune.filters.kalman_kernels`), else :func:`frame_kinds_numpy`."""
+    if jit.enabled():
+        return kalman_kernels.frame_kinds(finite, prior, measured)
+    return frame_kinds_numpy(finite, prior, measured)
+
+
+def frame_kinds_numpy(finite: np.ndarray, prior: bool | np.ndarray, measured: np.ndarray | None = None) -> np.ndarray:
+    """:func:`frame_kinds` in numpy (the reference)."""
     C, T = finite.shape
     frames = np.arange(T)
     first_index = np.where(finite.any(axis=1), np.argmax(finite, axis=1), T)

@@ -22,7 +22,7 @@ from bboxtune.filters import jit
 if TYPE_CHECKING:
     from bboxtune.filters.kalman_core import StepTables
 
-WAIT, INIT, UPDATE_Z = 0, 1, 4  # kalman_core's frame kinds: the two that reset a row, KF-CMN's update on z
+WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)  # kalman_core's frame kinds
 
 
 def gain_recursion(kinds: np.ndarray, tables: StepTables, P_start: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
@@ -32,15 +32,19 @@ def gain_recursion(kinds: np.ndarray, tables: StepTables, P_start: np.ndarray) -
     f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (tables.A, tables.Q, tables.Lam, tables.D, tables.R,
                                                                 tables.M, P_start)]
     kinds = np.ascontiguousarray(kinds, dtype=np.int8 if kinds.dtype == np.int8 else np.int32)
-    coef, steady, P_end = _gain_rows(kinds, *f64)
-    return coef, int(steady), P_end
+    by_row, steady, P_end = _gain_rows(kinds, *f64)
+    return by_row.transpose(1, 2, 0), int(steady), P_end  # (T, 6, G): a view of the rows' coefficients (G, T, 6)
 
 
 def apply_affine(coef: np.ndarray, steady_from: int, row_of_channel: np.ndarray, m: np.ndarray,
                  x_start: np.ndarray) -> np.ndarray:
     """:func:`bboxtune.filters.kalman_core.apply_affine` compiled: states (C, T, 2) of x_n = M_n x_{n−1} + g_n m_n,
-    ``coef`` (T, 6, G) constant from frame ``steady_from`` on, ``row_of_channel`` (C,), ``m`` (C, T), ``x_start`` (C, 2)."""
-    return _affine_channels(np.ascontiguousarray(coef, dtype=np.float64), int(steady_from),
+    ``coef`` (T, 6, G) constant from frame ``steady_from`` on, ``row_of_channel`` (C,), ``m`` (C, T), ``x_start`` (C, 2).
+    The coefficients are read row first (G, T, 6): :func:`gain_recursion` returns them so, others are transposed."""
+    by_row = coef.transpose(2, 0, 1)
+    if not (by_row.flags.c_contiguous and by_row.dtype == np.float64):
+        by_row = _rows_first(np.ascontiguousarray(coef, dtype=np.float64))
+    return _affine_channels(by_row, int(steady_from),
                             np.ascontiguousarray(row_of_channel, dtype=np.int64),
                             np.ascontiguousarray(m, dtype=np.float64), np.ascontiguousarray(x_start, dtype=np.float64))
 
@@ -89,7 +93,7 @@ def _gain_rows(kinds: np.ndarray, A: np.ndarray, Q: np.ndarray, Lam: np.ndarray,
         for g in range(G):
             if M[k, 0, g] != 0.0 or M[k, 1, g] != 0.0:
                 correlated[k] = True
-    coef = np.empty((T, 6, G))
+    coef = np.empty((G, T, 6))  # row first: each row's frames contiguous
     P_end = np.empty((2, 2, G))
     settled_from, repeat_from = 0, 0  # the last kind change, the last frame a row's covariance starts repeating
     for g in range(G):
@@ -104,20 +108,20 @@ def _gain_rows(kinds: np.ndarray, A: np.ndarray, Q: np.ndarray, Lam: np.ndarray,
             k = kinds[g, n]
             if k <= INIT:  # WAIT / INIT: x = [m, 0] (INIT) or 0 (WAIT), covariance back to the start one
                 n00, n01, n10, n11 = s00, s01, s10, s11
-                coef[n, 0, g], coef[n, 1, g], coef[n, 2, g], coef[n, 3, g] = 0.0, 0.0, 0.0, 0.0
-                coef[n, 4, g], coef[n, 5, g] = 1.0 if k == INIT else 0.0, 0.0
+                coef[g, n, :4] = 0.0
+                coef[g, n, 4], coef[g, n, 5] = 1.0 if k == INIT else 0.0, 0.0
             else:
                 (n00, n01, n10, n11), row = _joseph_step(
                     A[k, 0, 0, g], A[k, 0, 1, g], A[k, 1, 0, g], A[k, 1, 1, g], Q[k, 0, 0, g], Q[k, 0, 1, g],
                     Q[k, 1, 0, g], Q[k, 1, 1, g], Lam[k, 0, g], Lam[k, 1, g], D[k, 0, g], D[k, 1, g], R[k, g],
                     M[k, 0, g], M[k, 1, g], correlated[k], p00, p01, p10, p11)
-                coef[n, 0, g], coef[n, 1, g], coef[n, 2, g], coef[n, 3, g], coef[n, 4, g], coef[n, 5, g] = row
+                coef[g, n, 0], coef[g, n, 1], coef[g, n, 2], coef[g, n, 3], coef[g, n, 4], coef[g, n, 5] = row
             steady = n00 == p00 and n01 == p01 and n10 == p10 and n11 == p11
             p00, p01, p10, p11 = n00, n01, n10, n11
             if n >= last and steady:  # P_n = P_{n−1} and no kind change later: every later frame repeats frame n
                 repeats = n
                 for later in range(n + 1, T):
-                    coef[later, :, g] = coef[n, :, g]
+                    coef[g, later] = coef[g, n]
                 break
         repeat_from = max(repeat_from, repeats)
         P_end[0, 0, g], P_end[0, 1, g], P_end[1, 0, g], P_end[1, 1, g] = p00, p01, p10, p11
@@ -127,23 +131,30 @@ def _gain_rows(kinds: np.ndarray, A: np.ndarray, Q: np.ndarray, Lam: np.ndarray,
 
 
 @jit.kernel
-def _affine_channels(coef: np.ndarray, steady_from: int, row_of_channel: np.ndarray, m: np.ndarray,
-                     x_start: np.ndarray) -> np.ndarray:
-    """x_n = M_n x_{n−1} + g_n m_n channel by channel, the coefficients of frame min(n, ``steady_from``)."""
+def _rows_first(coef: np.ndarray) -> np.ndarray:
+    """(T, 6, G) → (G, T, 6), C-contiguous."""
     T, _, G = coef.shape
-    C = m.shape[0]
-    used = min(steady_from, T - 1) + 1
-    by_row = np.empty((G, used, 6))  # the coefficients row first: contiguous per channel
-    for n in range(used):
+    by_row = np.empty((G, T, 6))
+    for n in range(T):
         for j in range(6):
             for g in range(G):
                 by_row[g, n, j] = coef[n, j, g]
+    return by_row
+
+
+@jit.kernel
+def _affine_channels(by_row: np.ndarray, steady_from: int, row_of_channel: np.ndarray, m: np.ndarray,
+                     x_start: np.ndarray) -> np.ndarray:
+    """x_n = M_n x_{n−1} + g_n m_n channel by channel, with the coefficients ``by_row`` (G, T, 6) of frame
+    min(n, ``steady_from``)."""
+    C, T = m.shape
+    last = min(steady_from, T - 1)
     out = np.empty((C, T, 2))
     for c in range(C):
         rc = by_row[row_of_channel[c]]
         p, v = x_start[c, 0], x_start[c, 1]
         for n in range(T):
-            f = rc[min(n, used - 1)]
+            f = rc[min(n, last)]
             p, v = f[0] * p + f[1] * v + f[4] * m[c, n], f[2] * p + f[3] * v + f[5] * m[c, n]
             out[c, n, 0], out[c, n, 1] = p, v
     return out
@@ -198,3 +209,30 @@ def _differenced(kinds: np.ndarray, z: np.ndarray, finite: np.ndarray, y_before:
             elif not lengths_only:
                 m[c, n] = z[c, n]
             last = n
+
+
+def frame_kinds(finite: np.ndarray, prior: bool | np.ndarray, measured: np.ndarray | None = None) -> np.ndarray:
+    """:func:`bboxtune.filters.kalman_core.frame_kinds` compiled: the kind (C, T) int8 of every frame from the
+    finite-measurement mask ``finite`` (C, T), whether a channel starts from a prior (bool or (C,)) and, in a continued
+    run, whether its first finite measurement lies before frame 0 (``measured`` (C,) or None)."""
+    C = finite.shape[0]
+    seen = np.zeros(C, np.bool_) if measured is None else np.ascontiguousarray(measured, dtype=np.bool_)
+    return _frame_kinds(np.ascontiguousarray(finite, dtype=np.bool_), np.broadcast_to(prior, (C,)).astype(np.bool_),
+                        seen)
+
+
+@jit.kernel
+def _frame_kinds(finite: np.ndarray, prior: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """WAIT before a channel's first finite measurement without a prior, then INIT there; with a prior or after it,
+    UPDATE_Y at finite frames, PREDICT at the others (``seen``: a measurement before frame 0)."""
+    C, T = finite.shape
+    kinds = np.empty((C, T), np.int8)
+    for c in range(C):
+        started = seen[c] or prior[c]  # an estimate exists before this frame
+        for n in range(T):
+            if finite[c, n]:
+                kinds[c, n] = UPDATE_Y if started else INIT
+                started = True
+            else:
+                kinds[c, n] = PREDICT if started else WAIT
+    return kinds

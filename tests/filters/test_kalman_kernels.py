@@ -1,8 +1,8 @@
 """The compiled Kalman kernels (bboxtune.filters.kalman_kernels) equal their numpy references in kalman_core and
-kf_cmn to ≤ 1e-9 relative: KF-CMN's differencing (frame kinds across gaps, measurements), the gain recursion on the
-frame kinds and step tables KF / KF-CMN build from gappy tracks (40–60 % of the frames missing in runs, carried
-starts) and on random tables, its steady-state stop, the affine application, and whole filters (kf, kf_cmn, ukf) run
-with the kernels on and off."""
+kf_cmn to ≤ 1e-9 relative: the frame kinds, KF-CMN's differencing (frame kinds across gaps, measurements), the gain
+recursion on the frame kinds and step tables KF / KF-CMN build from gappy tracks (40–60 % of the frames missing in
+runs, carried starts) and on random tables, its steady-state stop, the affine application, and whole filters (kf,
+kf_cmn, ukf) run with the kernels on and off."""
 
 from __future__ import annotations
 
@@ -78,6 +78,19 @@ def assert_same_gains(kinds: np.ndarray, tables: kc.StepTables, P_start: np.ndar
     assert coef.shape == coef_ref.shape and P_end.shape == P_ref.shape
     assert_close(coef, coef_ref)
     assert_close(P_end, P_ref)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**16), C=st.integers(1, 6), T=st.integers(1, 100), prior=st.sampled_from(["no", "yes", "some"]),
+       carried=st.booleans())
+def test_frame_kinds_kernel_equals_reference(seed: int, C: int, T: int, prior: str, carried: bool) -> None:
+    rng = np.random.default_rng(seed)
+    finite = gappy_mask(rng, C, T)
+    with_prior = {"no": False, "yes": True, "some": rng.random(C) < 0.5}[prior]
+    measured = rng.random(C) < 0.5 if carried else None
+    got = kk.frame_kinds(finite, with_prior, measured)
+    assert got.dtype == np.int8
+    np.testing.assert_array_equal(got, kc.frame_kinds_numpy(finite, with_prior, measured))
 
 
 def assert_same_differences(kinds: np.ndarray, *inputs: np.ndarray) -> None:
