@@ -108,7 +108,8 @@ def _gain_rows(kinds: np.ndarray, A: np.ndarray, Q: np.ndarray, Lam: np.ndarray,
             k = kinds[g, n]
             if k <= INIT:  # WAIT / INIT: x = [m, 0] (INIT) or 0 (WAIT), covariance back to the start one
                 n00, n01, n10, n11 = s00, s01, s10, s11
-                coef[g, n, :4] = 0.0
+                for j in range(4):
+                    coef[g, n, j] = 0.0
                 coef[g, n, 4], coef[g, n, 5] = 1.0 if k == INIT else 0.0, 0.0
             else:
                 (n00, n01, n10, n11), row = _joseph_step(
@@ -121,7 +122,8 @@ def _gain_rows(kinds: np.ndarray, A: np.ndarray, Q: np.ndarray, Lam: np.ndarray,
             if n >= last and steady:  # P_n = P_{n−1} and no kind change later: every later frame repeats frame n
                 repeats = n
                 for later in range(n + 1, T):
-                    coef[g, later] = coef[g, n]
+                    for j in range(6):  # element loops, not slices: a third of the compile time
+                        coef[g, later, j] = coef[g, n, j]
                 break
         repeat_from = max(repeat_from, repeats)
         P_end[0, 0, g], P_end[0, 1, g], P_end[1, 0, g], P_end[1, 1, g] = p00, p01, p10, p11
