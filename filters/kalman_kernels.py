@@ -190,6 +190,7 @@ def _differenced(kinds: np.ndarray, z: np.ndarray, finite: np.ndarray, y_before:
     (UPDATE_Z where g = 0, ``kind_of_gap[g]`` across a gap) and the measurements ``m``."""
     C, T = z.shape
     lengths_only = m.shape[0] == 0
+    power, power_of = np.empty(len(present)), np.full(len(present), -1)  # ψ^{g+1} of channel power_of[g]
     for c in range(C):
         last = -1  # the last finite frame of this call so far
         for n in range(T):
@@ -206,8 +207,10 @@ def _differenced(kinds: np.ndarray, z: np.ndarray, finite: np.ndarray, y_before:
                     kinds[c, n] = UPDATE_Z
                     m[c, n] = z[c, n] - psi[c] * y_m  # (G1), g = 0
                 else:
+                    if power_of[g] != c:  # one power per channel and gap length
+                        power[g], power_of[g] = psi[c] ** (g + 1.0), c
                     kinds[c, n] = kind_of_gap[g]
-                    m[c, n] = z[c, n] - psi[c] ** (g + 1.0) * y_m  # (G1)
+                    m[c, n] = z[c, n] - power[g] * y_m  # (G1)
             elif not lengths_only:
                 m[c, n] = z[c, n]
             last = n
