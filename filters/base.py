@@ -28,7 +28,7 @@ import numpy as np
 from bboxtune.filters.blocks import block_diagonal, coordinate_blocks
 from bboxtune.filters.model import StateSpaceModel, check_model
 from bboxtune.filters.threads import limited_blas
-from bboxtune.filters.validation import broadcast_params, check_measurements, check_values
+from bboxtune.filters.validation import broadcast_params, check_measurements, check_values, first_nonfinite_estimate
 
 # Channel-frames (tracks × coordinates × frames) filtered per chunk: bounds the working memory of a call
 # (the heaviest back end, UFIR with missing samples, needs ~300 bytes per channel-frame: ~300 MB a chunk)
@@ -248,9 +248,9 @@ class Filter(ABC):
         """Every estimate (C, T, k) at or after a channel's first finite measurement must be finite: inside the
         documented ranges (:mod:`bboxtune.filters.validation`) it is; a non-finite one is a numerical failure, reported
         rather than returned."""
-        bad = np.maximum.accumulate(~np.isnan(z), axis=1)[..., None] & ~np.isfinite(axes)
-        if bad.any():
-            c, t, _ = np.argwhere(bad)[0]
+        found = first_nonfinite_estimate(z, axes)
+        if found is not None:
+            c, t = found
             M = self.model.M
             used = {k: (v[c] if np.ndim(v) == 1 and len(v) == len(z) else v) for k, v in params.items()}
             raise FloatingPointError(

@@ -40,6 +40,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from bboxtune.filters import jit
+
 SIGMA_RANGE = (1e-30, 1e30)  # any noise standard deviation (units, units/s², units/s)
 TAU_RANGE = (1e-6, 1e6)  # s, sampling interval
 PSI_MAX = 0.99  # CMN coloredness
@@ -191,3 +193,36 @@ def broadcast_params(params: dict[str, np.ndarray], n_tracks: int, batched: bool
         else:
             out[name] = np.full(n_tracks, arr, dtype=arr.dtype)
     return out
+
+
+def first_nonfinite_estimate(z: np.ndarray, estimates: np.ndarray) -> tuple[int, int] | None:
+    """(channel, frame) of the first non-finite estimate (``estimates`` (C, T, k), in C order) at or after a channel's
+    first finite measurement in ``z`` (C, T); None if every one is finite. Compiled where
+    :func:`bboxtune.filters.jit.enabled`, else :func:`first_nonfinite_estimate_numpy`."""
+    if not jit.enabled():
+        return first_nonfinite_estimate_numpy(z, estimates)
+    index = _first_nonfinite(np.ascontiguousarray(z, dtype=np.float64), estimates)
+    return None if index < 0 else (index // z.shape[1], index % z.shape[1])
+
+
+def first_nonfinite_estimate_numpy(z: np.ndarray, estimates: np.ndarray) -> tuple[int, int] | None:
+    """:func:`first_nonfinite_estimate` in numpy (the reference)."""
+    bad = np.maximum.accumulate(~np.isnan(z), axis=1)[..., None] & ~np.isfinite(estimates)
+    if not bad.any():
+        return None
+    c, t, _ = np.argwhere(bad)[0]
+    return int(c), int(t)
+
+
+@jit.kernel
+def _first_nonfinite(z: np.ndarray, estimates: np.ndarray) -> int:
+    """c · T + t of the first non-finite ``estimates[c, t]`` at or after channel c's first finite z; −1 if none."""
+    C, T, K = estimates.shape
+    for c in range(C):
+        began = False
+        for t in range(T):
+            began = began or not np.isnan(z[c, t])
+            for j in range(K if began else 0):
+                if not np.isfinite(estimates[c, t, j]):
+                    return c * T + t
+    return -1

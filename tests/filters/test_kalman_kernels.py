@@ -1,8 +1,8 @@
 """The compiled Kalman kernels (bboxtune.filters.kalman_kernels) equal their numpy references in kalman_core and
 kf_cmn to ≤ 1e-9 relative: the frame kinds, KF-CMN's differencing (frame kinds across gaps, measurements), the gain
 recursion on the frame kinds and step tables KF / KF-CMN build from gappy tracks (40–60 % of the frames missing in
-runs, carried starts) and on random tables, its steady-state stop, the affine application, and whole filters (kf,
-kf_cmn, ukf) run with the kernels on and off."""
+runs, carried starts) and on random tables, its steady-state stop, the affine application, whole filters (kf,
+kf_cmn, ukf) run with the kernels on and off, and the filters' check of their estimates (validation)."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from bboxtune.filters import jit
 from bboxtune.filters import kalman_core as kc
 from bboxtune.filters import kalman_kernels as kk
 from bboxtune.filters.kf_cmn import cmn_tables, differenced_kinds
+from bboxtune.filters.validation import first_nonfinite_estimate, first_nonfinite_estimate_numpy
 from tests.filters.test_cmn_gaps import runs_missing
 
 AXIS = filters.constant_velocity(0.05).axis()
@@ -205,3 +206,21 @@ def test_filters_equal_with_kernels_on_and_off(seed: int, name: str, T: int, pie
         params["psi"] = rng.uniform(0.0, 0.95, B)
     with_kernels, references = run_both(name, y, params, min(pieces, T))
     assert_close(with_kernels, references)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**16), C=st.integers(1, 6), T=st.integers(1, 60), k=st.integers(1, 2),
+       n_bad=st.integers(0, 3))
+def test_nonfinite_check_kernel_equals_reference(seed: int, C: int, T: int, k: int, n_bad: int) -> None:
+    """The filters' check of their estimates (base.Filter._check_finite): non-finite entries before a channel's
+    first finite measurement are allowed (WAIT frames), the first one after it is found, on full and sliced arrays."""
+    rng = np.random.default_rng(seed)
+    z = np.where(gappy_mask(rng, C, T), 1.0, np.nan)
+    estimates = rng.normal(size=(C, T, 2))
+    estimates[np.isnan(z)] = np.nan  # NaN at missing frames (WAIT ones among them)
+    for _ in range(n_bad):
+        estimates[rng.integers(C), rng.integers(T), rng.integers(2)] = rng.choice([np.nan, np.inf, -np.inf])
+    want = first_nonfinite_estimate_numpy(z, estimates[..., :k])
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(jit, "ENABLED", True)
+        assert first_nonfinite_estimate(z, estimates[..., :k]) == want
