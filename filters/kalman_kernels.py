@@ -1,8 +1,10 @@
-"""Compiled kernels of :mod:`bboxtune.filters.kalman_core`: the gain recursion and the affine application.
+"""Compiled kernels of the Kalman family (:mod:`bboxtune.filters.kalman_core`, :mod:`bboxtune.filters.kf_cmn`): the frame
+kinds, KF-CMN's differencing, the gain recursion and the affine application.
 
-Each computes what its numpy reference computes (``kalman_core.gain_recursion``,
-``kalman_core.apply_affine``): the same equations, in the same order of floating-point operations, so that the
-gains come out bit for bit equal to the frame-by-frame numpy path (property tests: tests/filters/test_kalman_kernels.py).
+Each computes what its numpy reference computes (``kalman_core.frame_kinds_numpy``, ``kf_cmn.differenced_kinds``,
+``kalman_core.gain_recursion``, ``kalman_core.apply_affine``): the same equations, in the same order of floating-point
+operations, so that the gains come out bit for bit equal to the frame-by-frame numpy path (property tests:
+tests/filters/test_kalman_kernels.py).
 
 * :func:`gain_recursion` runs each row on its own, frame by frame, and stops a row once its posterior covariance
   repeats bit for bit after its last change of frame kind (every later frame then repeats it: the map of a frame depends
