@@ -39,6 +39,7 @@ from typing import Any, ClassVar, cast
 
 import numpy as np
 
+from bboxtune.filters import jit, kalman_kernels
 from bboxtune.filters.base import AxisCarry
 from bboxtune.filters.blocks import split_covariance, split_state
 from bboxtune.filters.validation import VALUE_MAX, VARIANCE_MAX, check_prior_scale, numeric
@@ -89,7 +90,15 @@ def frame_kinds(finite: np.ndarray, prior: bool | np.ndarray, measured: np.ndarr
     The first finite measurement is a standard update (``prior``, bool or per channel (C,)) or the
     initialisation (no prior); later finite frames update on y (KF-CMN turns those with an earlier finite y into
     UPDATE_Z kinds: :func:`bboxtune.filters.kf_cmn.differenced_kinds`). A continued run (``Filter.run_from``) passes
-    ``measured`` (C,): channels whose first finite measurement lies before frame 0."""
+    ``measured`` (C,): channels whose first finite measurement lies before frame 0. Compiled where
+    :func:`bboxtune.filters.jit.enabled` (:mod:`bboxtune.filters.kalman_kernels`), else :func:`frame_kinds_numpy`."""
+    if jit.enabled():
+        return kalman_kernels.frame_kinds(finite, prior, measured)
+    return frame_kinds_numpy(finite, prior, measured)
+
+
+def frame_kinds_numpy(finite: np.ndarray, prior: bool | np.ndarray, measured: np.ndarray | None = None) -> np.ndarray:
+    """:func:`frame_kinds` in numpy (the reference)."""
     C, T = finite.shape
     frames = np.arange(T)
     first_index = np.where(finite.any(axis=1), np.argmax(finite, axis=1), T)
@@ -325,17 +334,19 @@ def filter_channels(m: np.ndarray, kinds: np.ndarray, row_params: np.ndarray, x_
     returns the :class:`StepTables` of G unique rows (for :func:`gain_recursion`), or ``recursion(kinds (G, T),
     params (G, n), P_start (2, 2, G))`` computes their coefficients as :func:`gain_recursion` does (the UKF's
     sigma-point recursion). Channels with equal parameters, start covariance and frame kinds share one gain
-    sequence. Returns posterior states (C, T, 2), NaN at WAIT frames, and the posterior covariance at the last
-    frame (C, 2, 2), NaN for channels still waiting there."""
+    sequence (compiled kernels: :mod:`bboxtune.filters.kalman_kernels`). Returns posterior states (C, T, 2), NaN at
+    WAIT frames, and the posterior covariance at the last frame (C, 2, 2), NaN for channels still waiting there."""
     C = m.shape[0]
     key = np.concatenate([row_params.reshape(C, -1), P_start.reshape(C, 4)], axis=1)
     first_of_row, row_of_channel = _group_rows(np.ascontiguousarray(key).view(np.uint64), kinds)
+    compiled = jit.enabled()  # the kernels of kalman_kernels, else the numpy references here
     if recursion is None:
         tables_of = cast("Callable[[np.ndarray], StepTables]", build_tables)  # given where recursion is not
-        recursion = lambda k, p, P: gain_recursion(k, tables_of(p), P)  # noqa: E731
+        gains = kalman_kernels.gain_recursion if compiled else gain_recursion
+        recursion = lambda k, p, P: gains(k, tables_of(p), P)  # noqa: E731
     coef, steady_from, P_rows = recursion(kinds[first_of_row], row_params[first_of_row],
                                           P_start[first_of_row].transpose(1, 2, 0))
-    states = apply_affine(coef, steady_from, row_of_channel, m, x_start)
+    states = (kalman_kernels.apply_affine if compiled else apply_affine)(coef, steady_from, row_of_channel, m, x_start)
     P_end = P_rows[:, :, row_of_channel].transpose(2, 0, 1)
     if np.any(kinds[:, 0] == WAIT):  # WAIT frames lead a channel's sequence
         states[kinds == WAIT] = np.nan

@@ -74,6 +74,7 @@ from typing import Any, ClassVar, cast
 
 import numpy as np
 
+from bboxtune.filters import jit, kalman_kernels
 from bboxtune.filters.base import AxisCarry, Filter
 from bboxtune.filters.kalman_core import (
     UPDATE_Z,
@@ -117,7 +118,8 @@ class KFCMN(FramePrior, Filter):
             y_before, missed = np.full(len(z), np.nan), np.zeros(len(z), np.int64)
         else:
             y_before, missed = cast(np.ndarray, start.y_last), cast(np.ndarray, start.missed)  # set in a given start
-        kinds, gaps, m = differenced_kinds(kinds, z, finite, y_before, missed, psi)
+        difference = kalman_kernels.differenced_kinds if jit.enabled() else differenced_kinds
+        kinds, gaps, m = difference(kinds, z, finite, y_before, missed, psi)
         row_params = np.stack([params["sigma_w"], params["sigma_v"], psi], axis=1)
         states, P_end = filter_channels(m, kinds, row_params, x_start, P_start, lambda p: cmn_tables(axis, p, gaps))
         return states, AxisCarry(x=states[:, -1], P=P_end)
