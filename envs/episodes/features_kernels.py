@@ -44,6 +44,8 @@ def _track_autocovariance(x: np.ndarray, first: int, stop: int, order: int, stri
     ``first``..``stop − 1`` of one track ``x`` (m, T): each series centred on the mean of its finite values, lag-k
     products averaged over the pairs where both exist (0 without a pair). ``d``, ``ok`` (m, T): scratch."""
     L = max(x.shape[1] - order * stride, 0)  # length of a differenced series
+    n_lags = min(len(out) - 1, L - 1) + 1
+    complete = True
     for j in range(stop - first):
         series = x[first + j]
         total, count = 0.0, 0
@@ -53,16 +55,21 @@ def _track_autocovariance(x: np.ndarray, first: int, stop: int, order: int, stri
             if ok[j, t]:
                 total += d[j, t]
                 count += 1
+        complete = complete and count == L
         mean = total / max(count, 1)
         for t in range(L):
             d[j, t] = d[j, t] - mean if ok[j, t] else 0.0
     out[:] = 0.0
-    for k in range(min(len(out) - 1, L - 1) + 1):
+    for k in range(n_lags):
         products, pairs = 0.0, 0
         for j in range(stop - first):
             for t in range(L - k):
                 products += d[j, t + k] * d[j, t]
-                pairs += ok[j, t + k] and ok[j, t]
+            if not complete:
+                for t in range(L - k):
+                    pairs += ok[j, t + k] and ok[j, t]
+        if complete:
+            pairs = (L - k) * (stop - first)
         out[k] = products / pairs if pairs > 0 else 0.0
 
 
@@ -88,8 +95,10 @@ def _track_scale(w: np.ndarray, h: np.ndarray, values: np.ndarray) -> float:
             n += 1
     if n == 0:
         return 1.0
-    s = np.sort(values[:n])
-    return math.sqrt(0.5 * (s[(n - 1) // 2] + s[n // 2]))
+    s = np.partition(values[:n], n // 2)  # the upper middle value in place, the smaller ones before it
+    high = s[n // 2]
+    low = high if n % 2 else np.max(s[: n // 2])
+    return math.sqrt(0.5 * (low + high))
 
 
 @jit.kernel
