@@ -238,22 +238,19 @@ def assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndar
     or (B, 1, 2); empty for ndim 1 and 2). The compiled kernel or :func:`assemble_numpy` (equal bit for bit)."""
     if not jit.enabled():
         return assemble_numpy(p0, v0, w, tau, delta, cmn, sizes0, bounds)
-    B, C = w.shape[0], w.shape[2]
+    B, T, C = w.shape[0], w.shape[1] + 1, w.shape[2]
     per_track = lambda x: np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=float).reshape(-1), (B,)))  # noqa: E731
     if sizes0.size:
         sizes0, bounds = np.broadcast_to(sizes0.reshape(-1, 2), (B, 2)), np.broadcast_to(bounds.reshape(-1, 2), (B, 2))
         low, high = np.log(bounds[:, :1] / sizes0), np.log(bounds[:, 1:] / sizes0)  # bounds of ℓ
     else:
-        low = high = np.empty((B, 0))
-    state = np.empty((B, w.shape[1] + 1, 2 * C))
+        low = high = sizes0 = np.empty((B, 0))
+    state = np.empty((B, T, 2 * C))
     simulate_kernels.integrate(np.ascontiguousarray(p0, dtype=float), np.ascontiguousarray(v0, dtype=float),
                                np.ascontiguousarray(w, dtype=float), per_track(tau), per_track(delta), low, high, state)
-    if sizes0.size:
-        sizes = sizes0[:, None] * np.exp(state[..., 2:4])  # w = w_0 exp(ℓ)
-        state[..., 2:4] = sizes
-        state[..., 6:8] *= sizes  # ẇ = w ℓ̇
-    truth = state[..., :C].copy()
-    return truth, state, truth + cmn  # (3)
+    growth = np.exp(state[..., 2:4]) if sizes0.size else np.empty((B, T, 0))  # w = w_0 exp(ℓ)
+    truth, y = simulate_kernels.measure(state, growth, np.ascontiguousarray(sizes0), np.ascontiguousarray(cmn, dtype=float))
+    return truth, state, y
 
 
 def assemble_numpy(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray, delta: float | np.ndarray,

@@ -65,3 +65,22 @@ def integrate(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: np.ndarray, de
                         state[b, n, C + c] = -state[b, n, C + c]
                     else:
                         state[b, n, c] = lo + u
+
+
+@jit.kernel
+def measure(state: np.ndarray, growth: np.ndarray, sizes0: np.ndarray, cmn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The truth and measurements (B, T, M) (M = ``cmn.shape[2]``) of the integrated ``state`` (B, T, 2M), whose box
+    sizes (coordinates 2, 3 when ``growth`` (B, T, 2) = exp(ℓ) is not empty) become w = w_0 exp(ℓ) and their rates
+    ẇ = w ℓ̇ (``sizes0`` (B, 2) = w_0, h_0) in place; y = truth + CMN (3)."""
+    B, T, M = cmn.shape
+    truth, y = np.empty((B, T, M)), np.empty((B, T, M))
+    for b in range(B):
+        for n in range(T):
+            for j in range(growth.shape[2]):
+                size = sizes0[b, j] * growth[b, n, j]
+                state[b, n, 2 + j] = size
+                state[b, n, M + 2 + j] *= size
+            for c in range(M):
+                truth[b, n, c] = state[b, n, c]
+                y[b, n, c] = state[b, n, c] + cmn[b, n, c]
+    return truth, y

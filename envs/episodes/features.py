@@ -38,6 +38,7 @@ import numpy as np
 from bboxtune.envs.episodes import features_kernels
 from bboxtune.filters import jit
 from bboxtune.filters.horizon import n_opt
+from bboxtune.filters.validation import SIGMA_RANGE, TAU_RANGE
 
 FEATURE_NAMES: tuple[str, ...] = (
     "log_scale", "log_tau", "log_var_d1_pos", "log_var_d2_pos", "log_var_d1_size", "log_var_d2_size",
@@ -223,11 +224,34 @@ def measurement_features(y: np.ndarray, tau: float | Sequence[float] | np.ndarra
     Y = _time_last(y if batched else y[None])  # (B, 4, T)
     B, _, T = Y.shape
     stats = _statistics(Y, Y - _time_last(rule_positions if batched else rule_positions[None]))
-    k = features_kernels
     tau = np.broadcast_to(np.asarray(tau, dtype=float), (B,))
-    scale = stats[:, k.SCALE]
     sv, sw = _sigmas(stats, tau, T)
-    nominal = [np.broadcast_to(np.asarray(s, dtype=float), (B,)) for s in (nominal_sigma_v, nominal_sigma_w)]
+    features = _observation(stats, tau, sv, sw, nominal_sigma_v, nominal_sigma_w, T).astype(np.float32)
+    return features if batched else features[0]
+
+
+def _observation(stats: np.ndarray, tau: np.ndarray, sv: np.ndarray, sw: np.ndarray, nominal_sigma_v: object,
+                 nominal_sigma_w: object, T: int) -> np.ndarray:
+    """The observations (B, 20) float64: by the compiled kernel, or by :func:`observation_numpy` (which also raises
+    ``n_opt``'s error for a σ or τ that is not a number or out of range)."""
+    B = len(stats)
+    nominal = [np.asarray(s) for s in (nominal_sigma_v, nominal_sigma_w)]
+    if jit.enabled() and all(s.dtype.kind in "iuf" and s.ndim <= 1 for s in nominal):
+        nominal_v, nominal_w = (np.ascontiguousarray(np.broadcast_to(s.astype(float), (B,))) for s in nominal)
+        obs, valid = features_kernels.observation(stats, np.ascontiguousarray(tau), sv, sw, nominal_v, nominal_w, T,
+                                                  SIGMA_RANGE, TAU_RANGE)
+        if valid:
+            return obs
+    return observation_numpy(stats, tau, sv, sw, nominal_sigma_v, nominal_sigma_w, T)
+
+
+def observation_numpy(stats: np.ndarray, tau: np.ndarray, sv: np.ndarray, sw: np.ndarray, nominal_sigma_v: object,
+                      nominal_sigma_w: object, T: int) -> np.ndarray:
+    """The numpy reference of ``features_kernels.observation``."""
+    k = features_kernels
+    B = len(stats)
+    scale = stats[:, k.SCALE]
+    nominal = [np.broadcast_to(s, (B,)) for s in (nominal_sigma_v, nominal_sigma_w)]
     log_nopt = np.log(n_opt(np.concatenate([nominal[0], sv]), np.concatenate([nominal[1], sw]), np.concatenate([tau, tau])))
     d1p, d2p, resid = stats[:, k.D1_POS:k.D1_POS + 4], stats[:, k.D2_POS:k.D2_POS + 4], stats[:, k.RESID:k.RESID + 2]
     columns = [
@@ -240,8 +264,7 @@ def measurement_features(y: np.ndarray, tau: float | Sequence[float] | np.ndarra
         _log_var(resid[:, 0], scale), _acf(resid)[:, 0],
         stats[:, k.MISSING], np.full(B, np.log(T)),
     ]
-    features = np.stack(columns, axis=-1).astype(np.float32)
-    return features if batched else features[0]
+    return np.stack(columns, axis=-1)
 
 
 WINDOW_FEATURE_NAMES: tuple[str, ...] = ("log_var_resid_window", "acf1_resid_window", "log_var_resid_vs_rule",

@@ -163,3 +163,45 @@ def sigmas(c0: np.ndarray, c1: np.ndarray, strided: np.ndarray, tau: np.ndarray,
         slope = num / den if den > 0 else 2.0 * (c0[b] - 6.0 * var_v) / tau[b] ** 4
         sigma_v[b], sigma_w[b] = math.sqrt(var_v), math.sqrt(np.maximum(slope, floor / tau[b] ** 4))
     return sigma_v, sigma_w
+
+
+@jit.kernel
+def _log_var(var: float, scale: float) -> float:
+    """log(var / scale²), the variance floored at VAR_FLOOR · scale²."""
+    return math.log(np.maximum(var, VAR_FLOOR * scale**2) / scale**2)
+
+
+@jit.kernel
+def _correlation(c: np.ndarray, k: int) -> float:
+    """Lag-k autocorrelation c_k / c_0 (0 unless c_0 > 0)."""
+    return c[k] / c[0] if c[0] > 0 else 0.0
+
+
+@jit.kernel
+def observation(stats: np.ndarray, tau: np.ndarray, sigma_v: np.ndarray, sigma_w: np.ndarray, nominal_v: np.ndarray,
+                nominal_w: np.ndarray, n_frames: int, sigma_range: tuple[float, float], tau_range: tuple[float, float]
+                ) -> tuple[np.ndarray, bool]:
+    """The observation vectors (B, 20) (``features.FEATURE_NAMES``) from the statistics (B, N_STATISTICS), τ, the
+    estimated σ̂_v, σ̂_w and the nominal σ (B,), and whether every σ and τ lies in its allowed range (``filters.horizon.n_opt``'s
+    check: when not, the caller takes the reference, which raises its error)."""
+    B = len(stats)
+    out = np.empty((B, 20))
+    valid = True
+    for b in range(B):
+        s, t = stats[b], tau[b]
+        scale = s[SCALE]
+        for sigma in (sigma_v[b], sigma_w[b], nominal_v[b], nominal_w[b]):
+            valid = valid and sigma_range[0] <= sigma <= sigma_range[1]
+        valid = valid and tau_range[0] <= t <= tau_range[1]
+        d1p, d2p = s[D1_POS:D1_POS + 4], s[D2_POS:D2_POS + 4]
+        out[b, 0], out[b, 1] = math.log(scale), math.log(t)
+        out[b, 2], out[b, 3] = _log_var(d1p[0], scale), _log_var(d2p[0], scale)
+        out[b, 4], out[b, 5] = _log_var(s[D1_SIZE], scale), _log_var(s[D2_SIZE], scale)
+        for k in range(1, 4):
+            out[b, 5 + k], out[b, 8 + k] = _correlation(d1p, k), _correlation(d2p, k)
+        out[b, 12] = math.log(math.sqrt(12.0 * nominal_v[b] / (t**2 * nominal_w[b])))  # log N_opt
+        out[b, 13] = math.log(math.sqrt(12.0 * sigma_v[b] / (t**2 * sigma_w[b])))
+        out[b, 14], out[b, 15] = math.log(sigma_v[b] / scale), math.log(sigma_w[b] * t**2 / scale)
+        out[b, 16], out[b, 17] = _log_var(s[RESID], scale), _correlation(s[RESID:RESID + 2], 1)
+        out[b, 18], out[b, 19] = s[MISSING], math.log(n_frames)
+    return out, valid

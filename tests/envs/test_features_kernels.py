@@ -104,3 +104,28 @@ def test_features_equal_numpy(y: np.ndarray, tau: float) -> None:
         kernel, reference = both(fn)
         assert np.isfinite(kernel).all()
         np.testing.assert_allclose(kernel, reference, rtol=1e-5, atol=1e-5)
+
+
+@settings(max_examples=40, deadline=None)
+@given(tracks(min_frames=3), st.floats(0.01, 1.0), st.floats(0.1, 10.0))
+def test_observation_equals_numpy(y: np.ndarray, tau: float, nominal: float) -> None:
+    """The observation from given statistics and σ̂ to 1e-9 relative (absolute for values near 0: correlations)."""
+    B, T = y.shape[:2]
+    Y = np.ascontiguousarray(np.swapaxes(y, 1, 2))
+    stats = features.statistics_numpy(Y, Y - 1.0)
+    taus = tau * np.linspace(1.0, 2.0, B)
+    sv, sw = features.sigmas_numpy(stats[:, 4], stats[:, 5], stats[:, 12:17], taus, stats[:, 17], T)
+    got, valid = features_kernels.observation(stats, taus, sv, sw, np.full(B, nominal), np.full(B, 2 * nominal), T,
+                                              (1e-30, 1e30), (1e-6, 1e6))
+    assert valid
+    want = features.observation_numpy(stats, taus, sv, sw, nominal, 2 * nominal, T)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize(("nominal", "error"), [(-1.0, ValueError), (np.nan, ValueError), ("1", TypeError), (1e31, ValueError)])
+def test_invalid_nominal_raises_in_both_modes(nominal: object, error: type[Exception]) -> None:
+    y = np.cumsum(np.random.default_rng(0).normal(size=(50, 4)), axis=0) + [320.0, 240.0, 60.0, 40.0]
+    for enabled in (True, False):
+        with pytest.MonkeyPatch.context() as mp, pytest.raises(error, match="sigma_v"):
+            mp.setattr(jit, "ENABLED", enabled)
+            features.measurement_features(y, 0.04, nominal, 10.0, y)
