@@ -84,6 +84,32 @@ def autocovariances(x: np.ndarray, first: int, stop: int, order: int, stride: in
 
 
 @jit.kernel
+def _select(values: np.ndarray, n: int, k: int) -> float:
+    """The k-th smallest of ``values[:n]`` (Wirth's quickselect, in place: afterwards ``values[:k]`` hold the k
+    smaller ones). Not ``np.partition``: its numba version takes minutes to compile."""
+    low, high = 0, n - 1
+    while low < high:
+        pivot = values[(low + high) // 2]
+        i, j = low, high
+        while i <= j:
+            while values[i] < pivot:
+                i += 1
+            while values[j] > pivot:
+                j -= 1
+            if i <= j:
+                values[i], values[j] = values[j], values[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            high = j
+        elif k >= i:
+            low = i
+        else:
+            break
+    return values[k]
+
+
+@jit.kernel
 def _track_scale(w: np.ndarray, h: np.ndarray, values: np.ndarray) -> float:
     """sqrt of the median of the finite positive areas w·h (T,) (the mean of the two middle values for an even
     count); 1.0 without one. ``values`` (T,): scratch."""
@@ -95,9 +121,12 @@ def _track_scale(w: np.ndarray, h: np.ndarray, values: np.ndarray) -> float:
             n += 1
     if n == 0:
         return 1.0
-    s = np.partition(values[:n], n // 2)  # the upper middle value in place, the smaller ones before it
-    high = s[n // 2]
-    low = high if n % 2 else np.max(s[: n // 2])
+    high = _select(values, n, n // 2)  # the upper middle value, the smaller ones before it
+    low = high
+    if n % 2 == 0:  # the lower middle value: the largest before it
+        low = values[0]
+        for t in range(1, n // 2):
+            low = max(low, values[t])
     return math.sqrt(0.5 * (low + high))
 
 
@@ -110,6 +139,13 @@ def median_scale(area: np.ndarray) -> np.ndarray:
     return out
 
 
+# The autocovariances measurement_statistics computes: (series of the residual (1) or the boxes (0), first, stop,
+# difference order, stride, lags + 1, first column); one call site in the kernel (short compile time).
+_JOBS = np.array([(0, 0, 2, 1, 1, 4, D1_POS), (0, 0, 2, 2, 1, 4, D2_POS), (0, 2, 4, 1, 1, 1, D1_SIZE),
+                  (0, 2, 4, 2, 1, 1, D2_SIZE), (1, 0, 4, 0, 1, 2, RESID)]
+                 + [(0, 0, 2, 2, k, 1, STRIDED + i) for i, k in enumerate(STRIDES)], dtype=np.int64)
+
+
 @jit.kernel
 def measurement_statistics(y: np.ndarray, resid: np.ndarray) -> np.ndarray:
     """The statistics (B, N_STATISTICS) (columns: the module's constants) of the measured boxes ``y`` (B, 4, T)
@@ -118,24 +154,19 @@ def measurement_statistics(y: np.ndarray, resid: np.ndarray) -> np.ndarray:
     out = np.zeros((B, N_STATISTICS))
     d, ok, values = np.empty((m, T)), np.empty((m, T), dtype=np.bool_), np.empty(T)
     for b in range(B):
-        row = out[b]
-        _track_autocovariance(y[b], 0, 2, 1, 1, row[D1_POS:D1_POS + 4], d, ok)
-        _track_autocovariance(y[b], 0, 2, 2, 1, row[D2_POS:D2_POS + 4], d, ok)
-        _track_autocovariance(y[b], 2, 4, 1, 1, row[D1_SIZE:D1_SIZE + 1], d, ok)
-        _track_autocovariance(y[b], 2, 4, 2, 1, row[D2_SIZE:D2_SIZE + 1], d, ok)
-        _track_autocovariance(resid[b], 0, m, 0, 1, row[RESID:RESID + 2], d, ok)
-        for i in range(len(STRIDES)):
-            if 8 * STRIDES[i] >= T:
-                break
-            _track_autocovariance(y[b], 0, 2, 2, STRIDES[i], row[STRIDED + i:STRIDED + i + 1], d, ok)
-        row[SCALE] = _track_scale(y[b, 2], y[b, 3], values)
+        for job in _JOBS:
+            source, first, stop, order, stride, n, column = job
+            if stride == 1 or 8 * stride < T:  # the σ_w strides with 8k < T
+                _track_autocovariance(resid[b] if source else y[b], first, stop, order, stride,
+                                      out[b, column:column + n], d, ok)
+        out[b, SCALE] = _track_scale(y[b, 2], y[b, 3], values)
         missing = 0
         for t in range(T):
             for j in range(m):
                 if not math.isfinite(y[b, j, t]):
                     missing += 1
                     break
-        row[MISSING] = missing / T
+        out[b, MISSING] = missing / T
     return out
 
 
