@@ -43,7 +43,9 @@ from typing import NamedTuple
 import numpy as np
 from scipy.signal import lfilter
 
+from bboxtune.envs.data import simulate_kernels
 from bboxtune.envs.data.sim_motion import OTB_MOTION, draw_extra, otb_paths, reflect
+from bboxtune.filters import jit
 
 MOTIONS = ("cv", "otb")  # truth motion models: constant velocity ([Shmaliy-CMN] eq. 1) or fitted to OTB-100
 _NDIMS = (1, 2, 4)  # scalar two-state, centroid (cx, cy), box (cx, cy, w, h)
@@ -97,12 +99,12 @@ class Scenario:
         if not (math.isfinite(self.delta) and self.tau + self.delta > 0):
             raise ValueError(f"delta={self.delta!r} is out of range: allowed finite with tau + delta > 0")
         x0 = self.initial_state
-        if x0.shape != (self.K,) or not np.all(np.isfinite(x0)):
+        if x0.shape != (self.K,) or not np.isfinite(x0).all():
             raise ValueError(f"x0={self.x0!r} must be {self.K} finite values [positions…, velocities…]")
         lo, hi = self.size_bounds
         if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
             raise ValueError(f"size_bounds={self.size_bounds!r} is out of range: allowed finite 0 < low < high (px)")
-        if self.ndim == 4 and not np.all((lo <= x0[2:4]) & (x0[2:4] <= hi)):
+        if self.ndim == 4 and not ((lo <= x0[2:4]) & (x0[2:4] <= hi)).all():
             raise ValueError(f"x0={self.x0!r}: box sizes x0[2], x0[3] must lie within size_bounds={self.size_bounds!r} px")
 
     @property
@@ -144,10 +146,21 @@ def gauss_markov(psi: float, sigma_xi: np.ndarray, shape: tuple[int, int, int], 
 
 def _colour(e: np.ndarray, psi: float) -> np.ndarray:
     """(2) in place on the scaled white noise ``e`` (B, T, C) → the CMN (B, T, C)."""
-    e[:, 0] /= math.sqrt(1.0 - psi**2)  # v_0 ~ N(0, σ_ξ²/(1 − ψ²)), the stationary law
-    if psi == 0.0:
+    return _colour_each(e, [psi] * len(e))
+
+
+def _colour_each(e: np.ndarray, psis: list[float]) -> np.ndarray:
+    """(2) on the scaled white noise ``e`` (B, T, C) of B tracks, track b with ψ = ``psis[b]`` (in place, where
+    possible) → the CMN (B, T, C)."""
+    start_std = np.array([math.sqrt(1.0 - psi**2) for psi in psis])  # v_0 ~ N(0, σ_ξ²/(1 − ψ²)), the stationary law
+    if jit.enabled():
+        simulate_kernels.colour(e, np.asarray(psis, dtype=float), start_std)
         return e
-    return lfilter([1.0], [1.0, -psi], e, axis=1)  # v_n = ψ v_{n−1} + ξ_n (2)
+    e[:, 0] /= start_std[:, None]
+    for b, psi in enumerate(psis):
+        if psi != 0.0:
+            e[b] = lfilter([1.0], [1.0, -psi], e[b], axis=0)  # v_n = ψ v_{n−1} + ξ_n (2)
+    return e
 
 
 def simulate(scenario: Scenario, rng: np.random.Generator, n_tracks: int | None = None) -> Track:
@@ -185,12 +198,15 @@ def simulate_each(scenarios: list[Scenario], rngs: list[np.random.Generator]) ->
     T, C, B = s0.n_frames, len(starts[0][2]), len(scenarios)
     w, e = np.empty((B, T - 1, C)), np.empty((B, T, s0.M))
     normals, uniforms = np.empty((B, T + 1, 2)), np.empty((B, T, 2))
-    for i, (rng, (_, _, sigma, sigma_xi, _)) in enumerate(zip(rngs, starts, strict=False)):  # in simulate's order: w, ξ, extras
-        w[i] = rng.standard_normal((T - 1, C)) * (sigma if s0.motion == "cv" else 1.0)
-        e[i] = rng.standard_normal((T, s0.M)) * sigma_xi
+    for i, rng in enumerate(rngs):  # in simulate's order: w, ξ, extras (filled in place: the same numbers)
+        rng.standard_normal(out=w[i])
+        rng.standard_normal(out=e[i])
         if s0.motion == "otb":
             normals[i], uniforms[i] = draw_extra(rng, T)
-    cmn = np.concatenate([_colour(e[i:i + 1], s.psi) for i, s in enumerate(scenarios)])
+    if s0.motion == "cv":
+        w *= np.stack([start[2] for start in starts])[:, None]
+    e *= np.stack([start[3] for start in starts])[:, None]
+    cmn = _colour_each(e, [s.psi for s in scenarios])
     if s0.motion == "otb":
         truth, state, y = _assemble_otb(scenarios, w, normals, uniforms, cmn)
         return [Track(truth=truth[i], truth_state=state[i], y=y[i], tau=s.tau) for i, s in enumerate(scenarios)]
@@ -219,7 +235,27 @@ def assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndar
               cmn: np.ndarray, sizes0: np.ndarray, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Truth (B, T, M), true state (B, T, K) and measurements (B, T, M) from the drawn noise (``sizes0``: the
     initial (w_0, h_0) of a box track, (2,) or (B, 1, 2), and ``bounds`` its size bounds (low, high) px, (2,)
-    or (B, 1, 2); empty for ndim 1 and 2)."""
+    or (B, 1, 2); empty for ndim 1 and 2). The compiled kernel or :func:`assemble_numpy` (equal bit for bit)."""
+    if not jit.enabled():
+        return assemble_numpy(p0, v0, w, tau, delta, cmn, sizes0, bounds)
+    B, T, C = w.shape[0], w.shape[1] + 1, w.shape[2]
+    per_track = lambda x: np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=float).reshape(-1), (B,)))  # noqa: E731
+    if sizes0.size:
+        sizes0, bounds = np.broadcast_to(sizes0.reshape(-1, 2), (B, 2)), np.broadcast_to(bounds.reshape(-1, 2), (B, 2))
+        low, high = np.log(bounds[:, :1] / sizes0), np.log(bounds[:, 1:] / sizes0)  # bounds of ℓ
+    else:
+        low = high = sizes0 = np.empty((B, 0))
+    state = np.empty((B, T, 2 * C))
+    simulate_kernels.integrate(np.ascontiguousarray(p0, dtype=float), np.ascontiguousarray(v0, dtype=float),
+                               np.ascontiguousarray(w, dtype=float), per_track(tau), per_track(delta), low, high, state)
+    growth = np.exp(state[..., 2:4]) if sizes0.size else np.empty((B, T, 0))  # w = w_0 exp(ℓ)
+    truth, y = simulate_kernels.measure(state, growth, np.ascontiguousarray(sizes0), np.ascontiguousarray(cmn, dtype=float))
+    return truth, state, y
+
+
+def assemble_numpy(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray, delta: float | np.ndarray,
+                   cmn: np.ndarray, sizes0: np.ndarray, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`assemble` in numpy (the reference of the kernel)."""
     p, v = _integrate(p0, v0, w, tau, delta)
     if sizes0.size:
         low, high = np.log(bounds[..., :1] / sizes0), np.log(bounds[..., 1:] / sizes0)  # bounds of ℓ

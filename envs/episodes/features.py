@@ -35,7 +35,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bboxtune.envs.episodes import features_kernels
+from bboxtune.filters import jit
 from bboxtune.filters.horizon import n_opt
+from bboxtune.filters.validation import SIGMA_RANGE, TAU_RANGE
 
 FEATURE_NAMES: tuple[str, ...] = (
     "log_scale", "log_tau", "log_var_d1_pos", "log_var_d2_pos", "log_var_d1_size", "log_var_d2_size",
@@ -43,7 +46,6 @@ FEATURE_NAMES: tuple[str, ...] = (
     "log_nopt_nominal", "log_nopt_est", "log_sigma_v_est", "log_sigma_w_est",
     "log_var_resid", "acf1_resid", "frac_missing", "log_n_frames",
 )
-_VAR_FLOOR = 1e-12
 
 
 def autocovariance(x: np.ndarray, lags: int) -> np.ndarray:
@@ -67,12 +69,31 @@ def autocovariance(x: np.ndarray, lags: int) -> np.ndarray:
     return out
 
 
-def _log_var(x: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    return np.log(np.maximum(autocovariance(x, 0)[..., 0], _VAR_FLOOR * scale**2) / scale**2)
+def differences(x: np.ndarray, order: int, stride: int = 1) -> np.ndarray:
+    """The differences along time of the series ``x`` (..., T): ``order`` 0 (x itself), 1 or 2 (``np.diff``), or
+    with ``order`` 2 and ``stride`` k > 1 the strided second difference x_{n+2k} − 2 x_{n+k} + x_n."""
+    if order == 0:
+        return x
+    if stride == 1:
+        return np.diff(x, n=order, axis=-1)
+    return x[..., 2 * stride:] - 2.0 * x[..., stride:-stride] + x[..., : -2 * stride]
 
 
-def _acf(x: np.ndarray, lags: int) -> np.ndarray:
-    c = autocovariance(x, lags)
+def _autocov(y: np.ndarray, lags: int, order: int = 0, stride: int = 1, series: tuple[int, int] = (0, 4)) -> np.ndarray:
+    """:func:`autocovariance` (B, lags + 1) of the :func:`differences` of the series ``series`` = [first, stop) of
+    the tracks ``y`` (B, m, T) (time last, contiguous): by the compiled kernel or in numpy."""
+    first, stop = series
+    if jit.enabled():
+        return features_kernels.autocovariances(y, first, stop, order, stride, lags)
+    return autocovariance(differences(y[:, first:stop], order, stride), lags)
+
+
+def _log_var(var: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    return np.log(np.maximum(var, features_kernels.VAR_FLOOR * scale**2) / scale**2)
+
+
+def _acf(c: np.ndarray) -> np.ndarray:
+    """Autocorrelations (B, lags) from autocovariances ``c`` (B, lags + 1)."""
     positive = c[..., :1] > 0
     return np.where(positive, c[..., 1:] / np.where(positive, c[..., :1], 1.0), 0.0)
 
@@ -89,6 +110,16 @@ def box_scale(y: np.ndarray) -> float | np.ndarray:
 
 
 def _scale(area: np.ndarray) -> float | np.ndarray:
+    if jit.enabled():
+        flat = np.ascontiguousarray(area, dtype=float).reshape(-1, area.shape[-1])
+        scale = features_kernels.median_scale(flat).reshape(area.shape[:-1])
+        return float(scale) if scale.ndim == 0 else scale
+    return scale_numpy(area)
+
+
+def scale_numpy(area: np.ndarray) -> float | np.ndarray:
+    """The numpy reference of the box scale: sqrt of the median of the finite positive ``area`` values (..., T)
+    (1.0 where there is none) → float or (...)."""
     ok = np.isfinite(area) & (area > 0)
     if ok.all():
         n = area.shape[-1]  # the median by one partial sort (np.median's result, without its overhead)
@@ -113,25 +144,62 @@ def estimate_sigmas(y: np.ndarray, tau: float | np.ndarray) -> tuple[float, floa
     k = 2, 4, …, 32 shorter than T/8. Coloured noise biases both (that is the point of tuning beyond the
     rule). Each variance is floored at 1e-12·scale² so the result is positive.
     """
-    sigma_v, sigma_w = _estimate_sigmas(_time_last(y), tau)
-    return (float(sigma_v), float(sigma_w)) if y.ndim == 2 else (sigma_v, sigma_w)
+    Y = _time_last(y if y.ndim == 3 else y[None])
+    if Y.shape[1] != 4:  # positions only: a box of area 1 (scale 1)
+        Y = np.concatenate([Y[:, :2], np.ones_like(Y[:, :2])], axis=1)
+    stats = _statistics(Y, Y)
+    sigma_v, sigma_w = _sigmas(stats, np.broadcast_to(np.asarray(tau, dtype=float), (len(Y),)), Y.shape[-1])
+    return (float(sigma_v[0]), float(sigma_w[0])) if y.ndim == 2 else (sigma_v, sigma_w)
 
 
-def _estimate_sigmas(y: np.ndarray, tau: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`estimate_sigmas` of series ``y`` (..., m, T) (time last)."""
-    T = y.shape[-1]
-    scale = _scale(y[..., 2, :] * y[..., 3, :]) if y.shape[-2] == 4 else np.ones(y.shape[:-2])
-    tau = np.asarray(tau, dtype=float)
-    pos = y[..., :2, :]
-    c = autocovariance(np.diff(pos, n=2, axis=-1), 1)
-    c0, c1 = c[..., 0], c[..., 1]
-    floor = _VAR_FLOOR * np.asarray(scale) ** 2
+def _statistics(y: np.ndarray, resid: np.ndarray) -> np.ndarray:
+    """The statistics (B, N_STATISTICS) of the boxes ``y`` (B, 4, T) and the residuals ``resid`` (B, 4, T) (time
+    last, contiguous; columns: ``features_kernels``' constants): by the compiled kernel or :func:`statistics_numpy`."""
+    if jit.enabled():
+        return features_kernels.measurement_statistics(y, np.ascontiguousarray(resid))
+    return statistics_numpy(y, resid)
+
+
+def statistics_numpy(y: np.ndarray, resid: np.ndarray) -> np.ndarray:
+    """The numpy reference of ``features_kernels.measurement_statistics``."""
+    k = features_kernels
+    B, _, T = y.shape
+    out = np.zeros((B, k.N_STATISTICS))
+    pos, size = y[:, :2], y[:, 2:]
+    out[:, k.D1_POS:k.D1_POS + 4] = autocovariance(differences(pos, 1), 3)
+    out[:, k.D2_POS:k.D2_POS + 4] = autocovariance(differences(pos, 2), 3)
+    out[:, k.D1_SIZE] = autocovariance(differences(size, 1), 0)[:, 0]
+    out[:, k.D2_SIZE] = autocovariance(differences(size, 2), 0)[:, 0]
+    out[:, k.RESID:k.RESID + 2] = autocovariance(resid, 1)
+    for i, stride in enumerate(k.STRIDES):
+        if 8 * stride >= T:
+            break
+        out[:, k.STRIDED + i] = autocovariance(differences(pos, 2, stride), 0)[:, 0]
+    out[:, k.SCALE] = scale_numpy(y[:, 2] * y[:, 3])
+    out[:, k.MISSING] = np.mean(~np.isfinite(y).all(axis=1), axis=-1)
+    return out
+
+
+def _sigmas(stats: np.ndarray, tau: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`estimate_sigmas` (B,) each from the tracks' statistics (B, N_STATISTICS) and τ (B,)."""
+    k = features_kernels
+    args = (stats[:, k.D2_POS], stats[:, k.D2_POS + 1], stats[:, k.STRIDED:k.STRIDED + len(k.STRIDES)], tau,
+            stats[:, k.SCALE], n_frames)
+    if jit.enabled():
+        return features_kernels.sigmas(*(np.ascontiguousarray(a) for a in args[:5]), n_frames)
+    return sigmas_numpy(*args)
+
+
+def sigmas_numpy(c0: np.ndarray, c1: np.ndarray, strided: np.ndarray, tau: np.ndarray, scale: np.ndarray,
+                 n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """The numpy reference of ``features_kernels.sigmas``."""
+    floor = features_kernels.VAR_FLOOR * scale**2
     var_v = np.maximum((c0 - 2.0 * c1) / 14.0, floor)
     num = den = np.zeros_like(var_v)
-    for k in (2, 4, 8, 16, 32):  # strides, not time
-        if 8 * k >= T:
+    for i, k in enumerate(features_kernels.STRIDES):  # strides, not time
+        if 8 * k >= n_frames:
             break
-        v_k = autocovariance(pos[..., 2 * k:] - 2.0 * pos[..., k:-k] + pos[..., : -2 * k], 0)[..., 0]
+        v_k = strided[:, i]
         g_k = (2.0 / 3.0) * k**3 * tau**4
         used = v_k > 0
         v_safe = np.where(used, v_k, 1.0)
@@ -154,26 +222,49 @@ def measurement_features(y: np.ndarray, tau: float | Sequence[float] | np.ndarra
     ``tau`` and the nominal σ: scalars or (B,)."""
     batched = y.ndim == 3
     Y = _time_last(y if batched else y[None])  # (B, 4, T)
-    resid = Y - _time_last(rule_positions if batched else rule_positions[None])
     B, _, T = Y.shape
+    stats = _statistics(Y, Y - _time_last(rule_positions if batched else rule_positions[None]))
     tau = np.broadcast_to(np.asarray(tau, dtype=float), (B,))
-    scale = np.broadcast_to(_scale(Y[:, 2] * Y[:, 3]), (B,))
-    pos, size = Y[:, :2], Y[:, 2:]
-    d1p, d2p = np.diff(pos, axis=-1), np.diff(pos, n=2, axis=-1)
-    sv, sw = _estimate_sigmas(Y, tau)
+    sv, sw = _sigmas(stats, tau, T)
+    features = _observation(stats, tau, sv, sw, nominal_sigma_v, nominal_sigma_w, T).astype(np.float32)
+    return features if batched else features[0]
+
+
+def _observation(stats: np.ndarray, tau: np.ndarray, sv: np.ndarray, sw: np.ndarray, nominal_sigma_v: object,
+                 nominal_sigma_w: object, T: int) -> np.ndarray:
+    """The observations (B, 20) float64: by the compiled kernel, or by :func:`observation_numpy` (which also raises
+    ``n_opt``'s error for a σ or τ that is not a number or out of range)."""
+    B = len(stats)
+    nominal = [np.asarray(s) for s in (nominal_sigma_v, nominal_sigma_w)]
+    if jit.enabled() and all(s.dtype.kind in "iuf" and s.ndim <= 1 for s in nominal):
+        nominal_v, nominal_w = (np.ascontiguousarray(np.broadcast_to(s.astype(float), (B,))) for s in nominal)
+        obs, valid = features_kernels.observation(stats, np.ascontiguousarray(tau), sv, sw, nominal_v, nominal_w, T,
+                                                  SIGMA_RANGE, TAU_RANGE)
+        if valid:
+            return obs
+    return observation_numpy(stats, tau, sv, sw, nominal_sigma_v, nominal_sigma_w, T)
+
+
+def observation_numpy(stats: np.ndarray, tau: np.ndarray, sv: np.ndarray, sw: np.ndarray, nominal_sigma_v: object,
+                      nominal_sigma_w: object, T: int) -> np.ndarray:
+    """The numpy reference of ``features_kernels.observation``."""
+    k = features_kernels
+    B = len(stats)
+    scale = stats[:, k.SCALE]
+    nominal = [np.broadcast_to(s, (B,)) for s in (nominal_sigma_v, nominal_sigma_w)]
+    log_nopt = np.log(n_opt(np.concatenate([nominal[0], sv]), np.concatenate([nominal[1], sw]), np.concatenate([tau, tau])))
+    d1p, d2p, resid = stats[:, k.D1_POS:k.D1_POS + 4], stats[:, k.D2_POS:k.D2_POS + 4], stats[:, k.RESID:k.RESID + 2]
     columns = [
         np.log(scale), np.log(tau),
-        _log_var(d1p, scale), _log_var(d2p, scale),
-        _log_var(np.diff(size, axis=-1), scale), _log_var(np.diff(size, n=2, axis=-1), scale),
-        *_acf(d1p, 3).T, *_acf(d2p, 3).T,
-        np.log(n_opt(np.broadcast_to(nominal_sigma_v, (B,)), np.broadcast_to(nominal_sigma_w, (B,)), tau)),
-        np.log(n_opt(sv, sw, tau)),
+        _log_var(d1p[:, 0], scale), _log_var(d2p[:, 0], scale),
+        _log_var(stats[:, k.D1_SIZE], scale), _log_var(stats[:, k.D2_SIZE], scale),
+        *_acf(d1p).T, *_acf(d2p).T,
+        log_nopt[:B], log_nopt[B:],
         np.log(sv / scale), np.log(sw * tau**2 / scale),
-        _log_var(resid, scale), _acf(resid, 1)[:, 0],
-        np.mean(~np.isfinite(Y).all(axis=1), axis=-1), np.full(B, np.log(T)),
+        _log_var(resid[:, 0], scale), _acf(resid)[:, 0],
+        stats[:, k.MISSING], np.full(B, np.log(T)),
     ]
-    features = np.stack(columns, axis=-1).astype(np.float32)
-    return features if batched else features[0]
+    return np.stack(columns, axis=-1)
 
 
 WINDOW_FEATURE_NAMES: tuple[str, ...] = ("log_var_resid_window", "acf1_resid_window", "log_var_resid_vs_rule",
@@ -195,7 +286,8 @@ def window_features(y: np.ndarray, estimates: np.ndarray, rule_positions: np.nda
     Y = _time_last(y[None])
     scale = np.atleast_1d(_scale(Y[:, 2] * Y[:, 3]))
     resid, rule_resid = Y - _time_last(estimates[None]), Y - _time_last(rule_positions[None])
-    log_var = _log_var(resid, scale)
-    columns = [log_var, _acf(resid, 1)[:, 0], log_var - _log_var(rule_resid, scale),
+    c_resid = _autocov(resid, 1)
+    log_var = _log_var(c_resid[:, 0], scale)
+    columns = [log_var, _acf(c_resid)[:, 0], log_var - _log_var(_autocov(rule_resid, 0)[:, 0], scale),
                np.mean(~np.isfinite(Y).all(axis=1), axis=-1)]
     return np.stack(columns, axis=-1).astype(np.float32)[0]

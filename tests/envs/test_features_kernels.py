@@ -1,0 +1,131 @@
+"""The features' compiled kernels (``bboxtune.envs.episodes.features_kernels``) against their numpy references on random
+tracks with missing frames (NaN rows and gaps), to ≤ 1e-9 relative; the box scale bit for bit (it sets the nominal σ of
+some sources' episodes)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bboxtune.envs.episodes import features, features_kernels
+from bboxtune.filters import jit
+
+
+def both(fn: Callable[[], Any]) -> tuple[Any, Any]:
+    """``fn()`` with the kernels, then with the numpy references."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(jit, "ENABLED", True)
+        kernel = fn()
+        mp.setattr(jit, "ENABLED", False)
+        return kernel, fn()
+
+
+@st.composite
+def tracks(draw: st.DrawFn, min_frames: int = 1) -> np.ndarray:
+    """Box tracks (B, T, 4): random walks around a box, with NaN rows, whole gaps, single NaN values, non-positive
+    sizes (now and then) and all-missing tracks."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    B, T = draw(st.integers(1, 4)), draw(st.integers(min_frames, 120))
+    y = np.cumsum(rng.normal(0, draw(st.floats(0.01, 20.0)), (B, T, 4)), axis=1) + [320.0, 240.0, 60.0, 40.0]
+    y[rng.random((B, T)) < draw(st.sampled_from([0.0, 0.0, 0.1, 0.5, 0.95]))] = np.nan
+    for b, start in enumerate(rng.integers(0, T, B)):
+        if draw(st.booleans()):
+            y[b, start:start + draw(st.integers(1, 40))] = np.nan  # a gap
+    if draw(st.booleans()):
+        y[rng.integers(0, B), rng.integers(0, T), rng.integers(0, 4)] = np.nan  # one coordinate missing
+    if draw(st.booleans()):
+        y[rng.integers(0, B), :, 2] *= -1  # no positive area
+    if draw(st.booleans()):
+        y[rng.integers(0, B)] = np.nan  # nothing measured
+    return y
+
+
+def _close(got: np.ndarray, want: np.ndarray, scale: np.ndarray) -> None:
+    """≤ 1e-9 relative, with an absolute floor 1e-9 × ``scale`` (the size of the sums, where a covariance cancels)."""
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * float(np.max(scale, initial=0.0)) + 1e-300)
+
+
+@settings(max_examples=60, deadline=None)
+@given(tracks(), st.sampled_from([(0, 1), (1, 1), (2, 1), (2, 2), (2, 4), (2, 16)]), st.integers(0, 3),
+       st.sampled_from([(0, 4), (0, 2), (2, 4)]))
+def test_autocovariances_equal_numpy(y: np.ndarray, order_stride: tuple[int, int], lags: int, series: tuple[int, int]) -> None:
+    Y = np.ascontiguousarray(np.swapaxes(y, 1, 2))
+    order, stride = order_stride
+    got = features_kernels.autocovariances(Y, series[0], series[1], order, stride, lags)
+    want = features.autocovariance(features.differences(Y[:, series[0]:series[1]], order, stride), lags)
+    assert got.shape == want.shape
+    _close(got, want, want[:, :1])
+
+
+@settings(max_examples=60, deadline=None)
+@given(tracks())
+def test_scale_equals_numpy_bit_for_bit(y: np.ndarray) -> None:
+    area = y[..., 2] * y[..., 3]
+    np.testing.assert_array_equal(features_kernels.median_scale(np.ascontiguousarray(area)), features.scale_numpy(area))
+    kernel, reference = both(lambda: features.box_scale(y[0]))
+    assert kernel == reference and isinstance(kernel, float)
+
+
+@settings(max_examples=40, deadline=None)
+@given(tracks(min_frames=3))
+def test_statistics_equal_numpy(y: np.ndarray) -> None:
+    """Every autocovariance to 1e-9 of its group's variance; the box scale and the fraction missing exactly."""
+    k = features_kernels
+    Y = np.ascontiguousarray(np.swapaxes(y, 1, 2))
+    resid = Y - np.random.default_rng(0).normal(300, 50, Y.shape)
+    got, want = k.measurement_statistics(Y, resid), features.statistics_numpy(Y, resid)
+    for group in (slice(k.D1_POS, k.D1_POS + 4), slice(k.D2_POS, k.D2_POS + 4), slice(k.D1_SIZE, k.D1_SIZE + 1),
+                  slice(k.D2_SIZE, k.D2_SIZE + 1), slice(k.RESID, k.RESID + 2)):
+        _close(got[:, group], want[:, group], want[:, group.start])
+    for i in range(len(k.STRIDES)):
+        _close(got[:, k.STRIDED + i], want[:, k.STRIDED + i], want[:, k.STRIDED + i])
+    np.testing.assert_array_equal(got[:, k.SCALE:], want[:, k.SCALE:])
+
+
+@settings(max_examples=40, deadline=None)
+@given(tracks(min_frames=3), st.floats(0.01, 1.0))
+def test_features_equal_numpy(y: np.ndarray, tau: float) -> None:
+    """σ̂ to 1e-9; the observation (float32) to float32 rounding; the window features of the first track."""
+    B = len(y)
+    rule = y + np.random.default_rng(0).normal(0, 1, y.shape)
+    taus = tau * np.linspace(1.0, 2.0, B)
+    (sv_k, sw_k), (sv_n, sw_n) = both(lambda: features.estimate_sigmas(y, taus))
+    _close(sv_k, sv_n, sv_n)
+    _close(sw_k, sw_n, sw_n)
+    (sv_k, sw_k), (sv_n, sw_n) = both(lambda: features.estimate_sigmas(y[0, :, :2], tau))  # one track, positions only
+    np.testing.assert_allclose([sv_k, sw_k], [sv_n, sw_n], rtol=1e-9)
+    for fn in (lambda: features.measurement_features(y, taus, 3.0, 10.0, rule),
+               lambda: features.window_features(y[0], rule[0], y[0] + 0.5)):
+        kernel, reference = both(fn)
+        assert np.isfinite(kernel).all()
+        np.testing.assert_allclose(kernel, reference, rtol=1e-5, atol=1e-5)
+
+
+@settings(max_examples=40, deadline=None)
+@given(tracks(min_frames=3), st.floats(0.01, 1.0), st.floats(0.1, 10.0))
+def test_observation_equals_numpy(y: np.ndarray, tau: float, nominal: float) -> None:
+    """The observation from given statistics and σ̂ to 1e-9 relative (absolute for values near 0: correlations)."""
+    B, T = y.shape[:2]
+    Y = np.ascontiguousarray(np.swapaxes(y, 1, 2))
+    stats = features.statistics_numpy(Y, Y - 1.0)
+    taus = tau * np.linspace(1.0, 2.0, B)
+    sv, sw = features.sigmas_numpy(stats[:, 4], stats[:, 5], stats[:, 12:17], taus, stats[:, 17], T)
+    got, valid = features_kernels.observation(stats, taus, sv, sw, np.full(B, nominal), np.full(B, 2 * nominal), T,
+                                              (1e-30, 1e30), (1e-6, 1e6))
+    assert valid
+    want = features.observation_numpy(stats, taus, sv, sw, nominal, 2 * nominal, T)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize(("nominal", "error"), [(-1.0, ValueError), (np.nan, ValueError), ("1", TypeError), (1e31, ValueError)])
+def test_invalid_nominal_raises_in_both_modes(nominal: object, error: type[Exception]) -> None:
+    y = np.cumsum(np.random.default_rng(0).normal(size=(50, 4)), axis=0) + [320.0, 240.0, 60.0, 40.0]
+    for enabled in (True, False):
+        with pytest.MonkeyPatch.context() as mp, pytest.raises(error, match="sigma_v"):
+            mp.setattr(jit, "ENABLED", enabled)
+            features.measurement_features(y, 0.04, nominal, 10.0, y)
