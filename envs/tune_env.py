@@ -304,6 +304,8 @@ class FilterTuneEnv(TrackEnv):
         scores = score_tracks(estimates, truths)
         reference = reference_scores(self.config.reward_baseline, scores, [ep.y for ep in episodes], truths)
         out: list[tuple[Episode, dict[str, Any], np.ndarray]] = [None] * len(episodes)  # type: ignore[list-item]
+        scores_of = {k: v.tolist() for k, v in scores.items()}  # Python floats, converted once for all episodes
+        reference_of = {k: v.tolist() for k, v in reference.items()}
         lengths = np.array([len(ep.y) for ep in episodes])
         for T in np.unique(lengths):  # the features of equal-length tracks in one call
             rows = np.flatnonzero(lengths == T)
@@ -313,8 +315,8 @@ class FilterTuneEnv(TrackEnv):
                                        np.stack([estimates[r] for r in rows]))
             for i, r in enumerate(rows):
                 rule = {"params": rule_params[r], "estimate": estimates[r],
-                        "scores": {k: float(v[r]) for k, v in scores.items()},
-                        "reference": {k: float(v[r]) for k, v in reference.items()}}
+                        "scores": {k: v[r] for k, v in scores_of.items()},
+                        "reference": {k: v[r] for k, v in reference_of.items()}}
                 out[r] = (episodes[r], rule, obs[i])
         return out
 
