@@ -38,9 +38,11 @@ def enabled() -> bool:
     return ENABLED
 
 
-def kernel(fn: Fn | None = None, *, parallel: bool = False) -> Any:
+def kernel(fn: Fn | None = None, *, parallel: bool = False, inline: bool = False) -> Any:
     """``numba.njit`` with ``cache=True, nogil=True`` (and ``parallel`` for ``numba.prange`` loops); no fastmath, so a
-    kernel computes what its numpy reference computes, NaN and inf included. Use as ``@kernel`` or ``@kernel(parallel=True)``."""
+    kernel computes what its numpy reference computes, NaN and inf included. ``inline``: a small helper compiled into
+    each kernel that calls it (numba's ``inline="always"``: faster calls, longer compiles). Use as ``@kernel``,
+    ``@kernel(parallel=True)`` or ``@kernel(inline=True)``."""
     def wrap(f: Fn) -> Fn:
-        return numba.njit(cache=True, nogil=True, parallel=parallel)(f)
+        return numba.njit(cache=True, nogil=True, parallel=parallel, inline="always" if inline else "never")(f)
     return wrap if fn is None else wrap(fn)

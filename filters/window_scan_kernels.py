@@ -13,20 +13,19 @@ lo = a + 1). Windows with fewer than 2 valid samples are left NaN (fir_core's fa
 
 A composition is stored as its structure rows S[i] = A00 A01 A10 A11 C00 C01 C11 J00 J01 J11, shared by the k
 channels of a group (same missing frames and parameters: the coordinates of a box), and its data rows
-D[i, m] = b0 b1 η0 η1 of channel m. The helpers are inlined into the kernel (``inline="always"``: numba IR inlining,
-~30 % faster here than calls). The numpy references are :meth:`bboxtune.filters.oufir.KalmanWindowFIR._startup` and
+D[i, m] = b0 b1 η0 η1 of channel m. The helpers are inlined into the kernel (``jit.kernel(inline=True)``: numba IR inlining,
+~30 % faster here than calls; ~7 s more to compile). The numpy references are :meth:`bboxtune.filters.oufir.KalmanWindowFIR._startup` and
 :meth:`~bboxtune.filters.oufir.KalmanWindowFIR._masked` (``$BBOXTUNE_JIT=0``).
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from bboxtune.filters import jit
 
 
-@numba.njit(inline="always", cache=True)
+@jit.kernel(inline=True)
 def _element(F: np.ndarray, B: np.ndarray, fr: np.ndarray, y: np.ndarray, t: int, S: np.ndarray, D: np.ndarray,
              i: int) -> None:
     """A = F − β B f, b = β y B, C = c B Bᵀ, η = w y fᵀ, J = w fᵀ f (f = H F; y (k,) the frame's samples)."""
@@ -42,7 +41,7 @@ def _element(F: np.ndarray, B: np.ndarray, fr: np.ndarray, y: np.ndarray, t: int
         D[i, m, 2], D[i, m, 3] = w * yy * f0, w * yy * f1
 
 
-@numba.njit(inline="always", cache=True)
+@jit.kernel(inline=True)
 def _append(F: np.ndarray, B: np.ndarray, fr: np.ndarray, y: np.ndarray, t: int, Sg: np.ndarray, Dg: np.ndarray,
             ig: int, S: np.ndarray, D: np.ndarray, i: int) -> None:
     """g then the frame (FrameModel.append: a KF update of the composition by Sherman–Morrison, then its predict)."""
@@ -73,7 +72,7 @@ def _append(F: np.ndarray, B: np.ndarray, fr: np.ndarray, y: np.ndarray, t: int,
         D[i, m, 2], D[i, m, 3] = h0 + eps * v0, h1 + eps * v1
 
 
-@numba.njit(inline="always", cache=True)
+@jit.kernel(inline=True)
 def _prepend(F: np.ndarray, B: np.ndarray, fr: np.ndarray, y: np.ndarray, t: int, Sg: np.ndarray, Dg: np.ndarray,
              ig: int, S: np.ndarray, D: np.ndarray, i: int) -> None:
     """The frame then g (FrameModel.prepend: Sherman–Morrison with the rank-one C of one frame)."""
@@ -107,7 +106,7 @@ def _prepend(F: np.ndarray, B: np.ndarray, fr: np.ndarray, y: np.ndarray, t: int
         D[i, m, 2], D[i, m, 3] = e00 * n0 + e10 * n1 + w * yy * f0, e01 * n0 + e11 * n1 + w * yy * f1
 
 
-@numba.njit(inline="always", cache=True)
+@jit.kernel(inline=True)
 def _combine(Si: np.ndarray, Di: np.ndarray, ii: int, Sj: np.ndarray, Dj: np.ndarray, ij: int, S: np.ndarray, D: np.ndarray,
              i: int) -> None:
     """i then j (window_scan.combine with covariance=False: the C rows of S are left unset)."""
@@ -139,7 +138,7 @@ def _combine(Si: np.ndarray, Di: np.ndarray, ii: int, Sj: np.ndarray, Dj: np.nda
         D[i, m, 2], D[i, m, 3] = n00 * v0 + n10 * v1 + h0, n01 * v0 + n11 * v1 + h1
 
 
-@numba.njit(inline="always", cache=True)
+@jit.kernel(inline=True)
 def _estimate(S: np.ndarray, D: np.ndarray, i: int, prior: bool, y: np.ndarray, a: int, P0: np.ndarray, X: np.ndarray,
               channels: np.ndarray, n: int, scale: float) -> None:
     """X[channels[m], n] = scale × x_n of composition (S[i], D[i, m]) for each channel m: flat prior A J⁻¹ η + b
