@@ -4,9 +4,6 @@ some sources' episodes)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -14,15 +11,7 @@ from hypothesis import strategies as st
 
 from bboxtune.envs.episodes import features, features_kernels
 from bboxtune.filters import jit
-
-
-def both(fn: Callable[[], Any]) -> tuple[Any, Any]:
-    """``fn()`` with the kernels, then with the numpy references."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(jit, "ENABLED", True)
-        kernel = fn()
-        mp.setattr(jit, "ENABLED", False)
-        return kernel, fn()
+from tests.kernel_modes import both
 
 
 @st.composite

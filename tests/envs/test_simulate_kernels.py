@@ -4,9 +4,6 @@ noise, 1, 2 and 4 coordinates, sampling-time errors, log sizes reflected many ti
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -16,17 +13,9 @@ from hypothesis import strategies as st
 from bboxtune.envs.data import simulate
 from bboxtune.envs.data.simulate import Scenario, ScenarioRanges
 from bboxtune.filters import jit
+from tests.kernel_modes import both
 
 seeds = st.integers(0, 2**32 - 1)
-
-
-def both(fn: Callable[[], Any]) -> tuple[Any, Any]:
-    """``fn()`` with the kernels, then with the numpy references."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(jit, "ENABLED", True)
-        kernel = fn()
-        mp.setattr(jit, "ENABLED", False)
-        return kernel, fn()
 
 
 @settings(max_examples=40, deadline=None)
