@@ -14,8 +14,9 @@ lo = a + 1). Windows with fewer than 2 valid samples are left NaN (fir_core's fa
 A composition is stored as its structure rows S[i] = A00 A01 A10 A11 C00 C01 C11 J00 J01 J11, shared by the k
 channels of a group (same missing frames and parameters: the coordinates of a box), and its data rows
 D[i, m] = b0 b1 η0 η1 of channel m. The helpers are inlined into the kernel (``jit.kernel(inline=True)``: numba IR inlining,
-~30 % faster here than calls; ~7 s more to compile). The numpy references are :meth:`bboxtune.filters.oufir.KalmanWindowFIR._startup` and
-:meth:`~bboxtune.filters.oufir.KalmanWindowFIR._masked` (``$BBOXTUNE_JIT=0``).
+~30 % faster here than calls; ~7 s more to compile). The numpy references are
+:meth:`bboxtune.filters.oufir.KalmanWindowFIR._startup` and :meth:`~bboxtune.filters.oufir.KalmanWindowFIR._masked`
+(``$BBOXTUNE_JIT=0``).
 """
 
 from __future__ import annotations

@@ -16,10 +16,19 @@ SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
 # back ends that take boxes with w, h >= SIZE_MIN only (they filter the aspect w / h)
 POSITIVE_SIZES = ("bytetrack_kf", "sort_kf")
 # Peak memory of scoring candidates (run_positions + score_estimates) per candidate and frame, in bytes, with a 15 %
-# margin (tracemalloc, FilterTune-v0 score of 200 candidates on a 200-frame episode: ukf 490, kf / kf_cmn 420, the FIR
-# family 200-206, bytetrack_kf 155; less per frame on longer episodes; tests/envs/test_memory.py)
+# margin (tracemalloc, FilterTune-v0 score of 200 candidates on a 200-frame episode; less per frame on longer episodes;
+# tests/envs/test_memory.py). The numpy references: ukf 490, kf / kf_cmn 420, the FIR family 200-206, bytetrack_kf 155;
+# the compiled kernels (bboxtune.filters.jit; the Kalman family's affine update without numpy temporaries): ukf 245,
+# kf_cmn 173, the others as above.
 CANDIDATE_FRAME_BYTES = {"ukf": 560, "kf": 480, "kf_cmn": 480}
+CANDIDATE_FRAME_BYTES_COMPILED = {"ukf": 280}
 CANDIDATE_FRAME_BYTES_OTHER = 240
+
+
+def candidate_frame_bytes(backend: str) -> int:
+    """Peak bytes per candidate and frame of scoring candidates with ``backend`` (the kernels' or the references')."""
+    table = CANDIDATE_FRAME_BYTES_COMPILED if jit.enabled() else CANDIDATE_FRAME_BYTES
+    return table.get(backend, CANDIDATE_FRAME_BYTES_OTHER)
 
 
 def box_model(tau: float) -> filters.StateSpaceModel:
@@ -57,7 +66,7 @@ def run_positions(backend: str, y: np.ndarray, tau: float, params: dict[str, np.
 def check_candidates(backend: str, n_candidates: int, n_frames: int) -> None:
     """``bboxtune.envs.data.memory.MemoryLimitError`` (a ``ValueError`` naming ``actions``) when scoring ``n_candidates``
     actions on ``n_frames`` frames with ``backend`` would need more memory than this machine has available."""
-    per_frame = CANDIDATE_FRAME_BYTES.get(backend, CANDIDATE_FRAME_BYTES_OTHER)
+    per_frame = candidate_frame_bytes(backend)
     check_fits(n_candidates * n_frames * per_frame, f"actions: {n_candidates} candidates × {n_frames} frames")
 
 

@@ -14,7 +14,7 @@ import pytest
 from bboxtune import envs
 from bboxtune.envs.data import memory
 from bboxtune.envs.data.memory import GIB, MemoryLimitError, check_fits
-from bboxtune.envs.episodes.scoring import CANDIDATE_FRAME_BYTES, CANDIDATE_FRAME_BYTES_OTHER
+from bboxtune.envs.episodes.scoring import CANDIDATE_FRAME_BYTES_OTHER, candidate_frame_bytes
 from bboxtune.envs.vector import TUNE_ID, TuneBatch, batch_bytes
 
 T = 50  # frames of the small episodes below
@@ -75,7 +75,7 @@ def test_score_refuses_candidates_beyond_memory_at_the_edge(backend, monkeypatch
     env = gym.make(TUNE_ID, backend=backend, track_length=T).unwrapped
     env.reset(seed=0)
     d = env.action_map.dim
-    pin_available(monkeypatch, 3 * T * CANDIDATE_FRAME_BYTES.get(backend, CANDIDATE_FRAME_BYTES_OTHER))
+    pin_available(monkeypatch, 3 * T * candidate_frame_bytes(backend))
     assert env.score(np.zeros((3, d)))["reward"].shape == (3,)
     with pytest.raises(MemoryLimitError, match=rf"^actions: 4 candidates × {T} frames needs ~"):
         env.score(np.zeros((4, d)))
@@ -129,7 +129,7 @@ def test_the_score_estimate_is_within_a_factor_2_above_the_measured_peak(backend
     env.reset(seed=0)
     actions = np.zeros((200, env.action_map.dim))
     measured = traced_peak(lambda: env.score(actions))
-    estimate = 200 * 200 * CANDIDATE_FRAME_BYTES.get(backend, CANDIDATE_FRAME_BYTES_OTHER)
+    estimate = 200 * 200 * candidate_frame_bytes(backend)
     assert measured <= estimate <= 2 * measured, (measured, estimate)
 
 
