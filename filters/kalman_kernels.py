@@ -15,14 +15,22 @@ tests/filters/test_kalman_kernels.py).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from bboxtune.filters import jit
 
-if TYPE_CHECKING:
-    from bboxtune.filters.kalman_core import StepTables
+
+class StepTables(Protocol):
+    """The per-kind step tables of :class:`bboxtune.filters.kalman_core.StepTables` (kind first, row last)."""
+
+    A: np.ndarray  # (kinds, 2, 2, G)
+    Q: np.ndarray  # (kinds, 2, 2, G)
+    Lam: np.ndarray  # (kinds, 2, G)
+    D: np.ndarray  # (kinds, 2, G)
+    R: np.ndarray  # (kinds, G)
+    M: np.ndarray  # (kinds, 2, G)
 
 WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)  # kalman_core's frame kinds
 
