@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import numba
 
@@ -44,5 +44,5 @@ def kernel(fn: Fn | None = None, *, parallel: bool = False, inline: bool = False
     each kernel that calls it (numba's ``inline="always"``: faster calls, longer compiles). Use as ``@kernel``,
     ``@kernel(parallel=True)`` or ``@kernel(inline=True)``."""
     def wrap(f: Fn) -> Fn:
-        return numba.njit(cache=True, nogil=True, parallel=parallel, inline="always" if inline else "never")(f)
+        return cast("Fn", numba.njit(cache=True, nogil=True, parallel=parallel, inline="always" if inline else "never")(f))
     return wrap if fn is None else wrap(fn)

@@ -23,14 +23,21 @@ from bboxtune.filters import jit
 
 
 class StepTables(Protocol):
-    """The per-kind step tables of :class:`bboxtune.filters.kalman_core.StepTables` (kind first, row last)."""
+    """The per-kind step tables of :class:`bboxtune.filters.kalman_core.StepTables` (kind first, row last): A, Q
+    (kinds, 2, 2, G), Lam, D, M (kinds, 2, G), R (kinds, G)."""
 
-    A: np.ndarray  # (kinds, 2, 2, G)
-    Q: np.ndarray  # (kinds, 2, 2, G)
-    Lam: np.ndarray  # (kinds, 2, G)
-    D: np.ndarray  # (kinds, 2, G)
-    R: np.ndarray  # (kinds, G)
-    M: np.ndarray  # (kinds, 2, G)
+    @property
+    def A(self) -> np.ndarray: ...
+    @property
+    def Q(self) -> np.ndarray: ...
+    @property
+    def Lam(self) -> np.ndarray: ...
+    @property
+    def D(self) -> np.ndarray: ...
+    @property
+    def R(self) -> np.ndarray: ...
+    @property
+    def M(self) -> np.ndarray: ...
 
 WAIT, INIT, PREDICT, UPDATE_Y, UPDATE_Z = range(5)  # kalman_core's frame kinds
 

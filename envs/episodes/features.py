@@ -251,7 +251,7 @@ def observation_numpy(stats: np.ndarray, tau: np.ndarray, sv: np.ndarray, sw: np
     k = features_kernels
     B = len(stats)
     scale = stats[:, k.SCALE]
-    nominal = [np.broadcast_to(s, (B,)) for s in (nominal_sigma_v, nominal_sigma_w)]
+    nominal = [np.broadcast_to(np.asarray(s), (B,)) for s in (nominal_sigma_v, nominal_sigma_w)]
     log_nopt = np.log(n_opt(np.concatenate([nominal[0], sv]), np.concatenate([nominal[1], sw]), np.concatenate([tau, tau])))
     d1p, d2p, resid = stats[:, k.D1_POS:k.D1_POS + 4], stats[:, k.D2_POS:k.D2_POS + 4], stats[:, k.RESID:k.RESID + 2]
     columns = [
