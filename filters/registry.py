@@ -27,6 +27,8 @@ _REGISTRY: dict[str, tuple[str, str]] = {
     "ukf": ("bboxtune.filters.ukf", "UKF"),
     "bytetrack_kf": ("bboxtune.filters.bytetrack_kf", "ByteTrackKF"),
     "sort_kf": ("bboxtune.filters.sort_kf", "SortKF"),
+    # SORT's filter with two noise scales per track: the search tuner's candidates (bboxtune.agents.tracking.search_tune)
+    "sort_kf_scaled": ("bboxtune.filters.sort_kf", "ScaledSortKF"),
 }
 
 

@@ -72,3 +72,24 @@ class SortKF(BoxKF):
             half = S[..., 6] / (2 * s)  # ẇ = w s' / 2s, ḣ = h s' / 2s
             S[..., 6], S[..., 7] = w * half, h * half
         S[..., 2], S[..., 3] = w, h
+
+
+class ScaledSortKF(SortKF):
+    """SORT's filter with two noise scales per track: the standard deviations of Q's rate entries (u', v', s')
+    times ``velocity_noise_scale`` k_v and those of R times ``measurement_noise_scale`` k_r (P₀ and Q's coordinate
+    entries unchanged; each scale within :data:`bboxtune.filters.bytetrack_kf.STD_RANGE`). k_v = k_r = 1 is
+    :class:`SortKF` bit for bit. k_v sets how fast the velocity may change, k_r how much a detection is trusted
+    against the prediction. The candidate family of the tracker's search tuner
+    (:mod:`bboxtune.agents.tracking.search_tune`); registered as ``sort_kf_scaled`` but, like its neighbours'
+    tuning knobs, not among the env back ends."""
+
+    name: ClassVar[str] = "sort_kf_scaled"
+    DEFAULTS: ClassVar[dict[str, Any]] = {"velocity_noise_scale": 1.0, "measurement_noise_scale": 1.0}
+    PER_TRACK: ClassVar[tuple[str, ...]] = tuple(DEFAULTS)
+
+    def _noise(self, params: dict[str, np.ndarray]) -> HeightNoise:
+        coordinates, rates = NOISE.process[1]
+        return HeightNoise(start=NOISE.start,
+                           process=(NOISE.process[0], np.stack(np.broadcast_arrays(
+                               coordinates, rates * params["velocity_noise_scale"]))),
+                           measurement=(NOISE.measurement[0], NOISE.measurement[1] * params["measurement_noise_scale"]))

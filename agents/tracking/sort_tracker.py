@@ -31,12 +31,14 @@ import numpy as np
 from bboxtune import filters
 from bboxtune.agents.tracking.association import assign, iou_matrix
 from bboxtune.agents.tracking.filter_bank import FilterBank
-from bboxtune.agents.tracking.retune import CausalRetune
+from bboxtune.agents.tracking.retune import CausalRetune, Retuner
+from bboxtune.agents.tracking.search_tune import BACKEND, CausalSearch, SearchSettings
 
 if TYPE_CHECKING:
     from bboxtune.agents.smoothing.tuner import Tuner
 
-TUNED = "tuned"  # the filter chosen per track by a tuner (make_tracker)
+TUNED = "tuned"  # the filter chosen per track by a trained tuner (make_tracker)
+SEARCH = "search"  # the filter chosen per track by the causal prediction search (make_tracker)
 
 
 @dataclass(frozen=True)
@@ -100,7 +102,7 @@ class Tracker:
     """Online SORT-style tracker over ``bank`` (its back end and parameters) with ``config``; ``retune`` re-tunes
     each track's filter from its own past detections (None: the bank's parameters throughout)."""
 
-    def __init__(self, bank: FilterBank, config: TrackerConfig | None = None, retune: CausalRetune | None = None) -> None:
+    def __init__(self, bank: FilterBank, config: TrackerConfig | None = None, retune: Retuner | None = None) -> None:
         self.bank, self.config, self.retune = bank, config or TrackerConfig(), retune
         self._tracks = _Tracks()
         self._next_id = 1
@@ -173,10 +175,19 @@ class Tracker:
 
 
 def make_tracker(filter_name: str, tau: float, *, params: Mapping[str, Any] | None = None, tuner: Tuner | None = None,
-                 config: TrackerConfig | None = None, window: int = 10, history: int = 100) -> Tracker:
+                 config: TrackerConfig | None = None, window: int = 10, history: int = 100,
+                 search: SearchSettings | None = None) -> Tracker:
     """A tracker whose filter is ``filter_name``: a back end of :mod:`bboxtune.filters` (``sort_kf``, ``bytetrack_kf``,
-    ``kf``, …) with ``params``, or :data:`TUNED`: ``tuner``'s back end re-tuned per track every ``window`` frames
-    from its last ``history`` frames (:class:`CausalRetune`), starting from the back end's stock parameters."""
+    ``kf``, …) with ``params``; :data:`TUNED`: ``tuner``'s back end re-tuned per track every ``window`` frames
+    from its last ``history`` frames (:class:`CausalRetune`), starting from the back end's stock parameters; or
+    :data:`SEARCH`: SORT's filter with noise scales chosen per track by :class:`CausalSearch` with ``search``
+    (its own window and history; default :class:`SearchSettings`)."""
+    if filter_name == SEARCH:
+        if tuner is not None or params:
+            raise ValueError(f"filter {SEARCH!r} takes no tuner and no params (the search sets them)")
+        return Tracker(FilterBank(BACKEND, tau), config, CausalSearch(tau, search))
+    if search is not None:
+        raise ValueError(f"search settings are for filter {SEARCH!r}, not {filter_name!r}")
     if filter_name != TUNED:
         if tuner is not None:
             raise ValueError(f"a tuner is for filter {TUNED!r}; filter {filter_name!r} takes params")
