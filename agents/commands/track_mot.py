@@ -11,8 +11,11 @@ track matched in this frame and in --min-hits frames in a row is written (SORT's
 max_age 1, min_hits 3, iou_threshold 0.3). --filter: sort_kf (SORT's filter), bytetrack_kf (ByteTrack's), any
 other back end of bboxtune.filters with --params, or tuned: a trained tuner (--pretrained NAME, default mot15_det,
 or --model RUN_DIR) re-tunes each track's filter every --retune-window frames from that track's own past
-detections only, starting from the back end's stock parameters. Causal throughout: frame t uses detections up
-to t.
+detections only, starting from the back end's stock parameters; or search: SORT's filter with two noise scales
+chosen per track every --retune-window frames from a candidate grid (--search-width) by how well each candidate
+would have predicted the track's own past matched detections (IoU counted up to --search-cap; SORT's stock filter
+until --search-min-scored frames are scored, and preferred unless another is better by --search-margin):
+bboxtune.agents.tracking.search_tune. Causal throughout: frame t uses detections up to t.
 
 The frame rate (the filters' tau = 1/fps) is --fps, else the seqinfo.ini beside the det file (its folder or the
 one above), else the sequences.csv of the data the det file belongs to (three folders up:
@@ -46,12 +49,15 @@ from bboxtune.agents.cli import (
 )
 from bboxtune.agents.smoothing.mot_smooth import check_fps, find_seqinfo, read_seqinfo_fps
 from bboxtune.agents.smoothing.tuner import Tuner, load_pretrained
-from bboxtune.agents.tracking.sort_tracker import TUNED, Tracker, TrackerConfig, make_tracker
+from bboxtune.agents.tracking.search_tune import SearchSettings
+from bboxtune.agents.tracking.sort_tracker import SEARCH, TUNED, Tracker, TrackerConfig, make_tracker
 from bboxtune.envs.data.atomic_files import write_text_atomic
 from bboxtune.envs.data.mot import resolve_root
 from bboxtune.envs.data.mot_io import Detections, read_detections, read_sequences_csv
 
-FILTERS = ("sort_kf", "bytetrack_kf", *filters.NAMES, TUNED)
+FILTERS = ("sort_kf", "bytetrack_kf", *filters.NAMES, TUNED, SEARCH)
+SEARCH_FLAGS = {"--search-width": "width", "--search-cap": "cap", "--search-margin": "margin",
+                "--search-min-scored": "min_scored"}  # flag -> SearchSettings field
 DEFAULT_PRETRAINED = "mot15_det"
 
 
@@ -65,8 +71,18 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--params", nargs="*", default=[], metavar="KEY=VALUE", help="the back end's parameters (not with tuned)")
     p.add_argument("--pretrained", default=None, metavar="NAME", help=f"tuned: a pretrained tuner (default {DEFAULT_PRETRAINED})")
     p.add_argument("--model", type=existing_dir, default=None, metavar="RUN_DIR", help="tuned: a train.py run as the tuner")
-    p.add_argument("--retune-window", type=int_range(1, 10**6), default=10, help="tuned: frames between re-tunes of a track")
-    p.add_argument("--retune-history", type=int_range(8, 10**6), default=100, help="tuned: past frames the tuner sees")
+    p.add_argument("--retune-window", type=int_range(1, 10**6), default=None,
+                   help=f"tuned / search: frames between re-tunes (default 10 / {SearchSettings.window})")
+    p.add_argument("--retune-history", type=int_range(8, 10**6), default=None,
+                   help=f"tuned / search: past frames seen (default 100 / {SearchSettings.history})")
+    p.add_argument("--search-width", type=float_range(1.0, 1e6), default=None,
+                   help=f"search: the candidates' largest noise scale (default {SearchSettings.width:g})")
+    p.add_argument("--search-cap", type=float_range(0.0, 1.0, low_open=True), default=None,
+                   help=f"search: IoU counted up to this (default {SearchSettings.cap:g})")
+    p.add_argument("--search-margin", type=float_range(0.0, 1.0), default=None,
+                   help=f"search: mean IoU a candidate must gain over SORT's filter (default {SearchSettings.margin:g})")
+    p.add_argument("--search-min-scored", type=int_range(1, 10**6), default=None,
+                   help=f"search: scored frames before a track leaves SORT's filter (default {SearchSettings.min_scored})")
     p.add_argument("--max-age", type=int_range(0, 10**6), default=1, help="frames a track lives without a match")
     p.add_argument("--min-hits", type=int_range(0, 10**6), default=3, help="matches in a row before a track is written")
     p.add_argument("--iou-threshold", type=float_range(0.0, 1.0, low_open=True), default=0.3, help="least IoU of a match")
@@ -124,6 +140,13 @@ def main(argv: list[str] | None = None) -> int:
     tuned = args.filter == TUNED
     if not tuned and (args.pretrained or args.model):
         p.error(f"--pretrained / --model: only with --filter {TUNED}")
+    search_given = {field: getattr(args, flag[2:].replace("-", "_")) for flag, field in SEARCH_FLAGS.items()}
+    if args.filter != SEARCH and any(value is not None for value in search_given.values()):
+        p.error(f"{', '.join(SEARCH_FLAGS)}: only with --filter {SEARCH}")
+    if args.filter not in (TUNED, SEARCH) and (args.retune_window or args.retune_history):
+        p.error(f"--retune-window / --retune-history: only with --filter {TUNED} or {SEARCH}")
+    if args.filter == SEARCH and args.params:
+        p.error(f"--params: not with --filter {SEARCH} (the search sets the parameters)")
     if tuned and args.params:
         p.error(f"--params: not with --filter {TUNED} (the tuner sets the parameters)")
     if args.pretrained and args.model:
@@ -138,8 +161,13 @@ def main(argv: list[str] | None = None) -> int:
         config = TrackerConfig(max_age=args.max_age, min_hits=args.min_hits, iou_threshold=args.iou_threshold,
                                two_stage=args.two_stage, high_score=args.high_score, low_score=args.low_score,
                                low_iou_threshold=args.low_iou_threshold, new_track_score=args.new_track_score)
-        tracker = make_tracker(args.filter, tau, params=params, tuner=tuner, config=config,
-                               window=args.retune_window, history=args.retune_history)
+        retune = {name: value for name, value in (("window", args.retune_window), ("history", args.retune_history))
+                  if value is not None}
+        if args.filter == SEARCH:
+            given = {**retune, **{field: value for field, value in search_given.items() if value is not None}}
+            tracker = make_tracker(SEARCH, tau, config=config, search=SearchSettings(**given))
+        else:
+            tracker = make_tracker(args.filter, tau, params=params, tuner=tuner, config=config, **retune)
     except (ValueError, TypeError, OSError) as err:
         p.error(str(err))
     rows = track(tracker, det, args.min_score, args.det.parent.parent.name)

@@ -5,8 +5,10 @@ Association matches a detection to where the filter *predicts* the track, so the
 quantity association uses: the IoU of the box the candidate predicts at each past frame that has a matched
 detection — predicted from the frames before it only, one step after a detection and several steps across missed
 frames (the prediction at the frame the track is re-detected, where a too slow or too fast filter loses the track
-or takes another's detection) — with that detection, averaged over the track's last ``history`` frames
-(:func:`candidate_scores`). A missing prediction at such a frame counts as IoU 0.
+or takes another's detection) — with that detection, counted up to ``cap`` (association needs an IoU above its
+threshold, not a perfect box: a cap below 1 spends the score on the frames near losing the track) and averaged
+over the track's last ``history`` frames (:func:`candidate_scores`). A missing prediction at such a frame counts as
+IoU 0.
 
 The candidates are SORT's filter with two noise scales (:class:`bboxtune.filters.sort_kf.ScaledSortKF`): every
 pair (k_v, k_r) with k = ``width`` ** u, u on ``steps`` points evenly spaced in [−1, 1] (:func:`candidate_grid`;
@@ -55,6 +57,7 @@ class SearchSettings:
     steps: int = 5  # grid points per scale (odd)
     margin: float = 0.0  # mean-IoU advantage a candidate needs over SORT's stock filter
     min_scored: int = 5  # scored frames a track needs before it leaves SORT's stock filter
+    cap: float = 1.0  # IoU counted up to this (the association needs IoU >= its threshold, not a perfect box)
 
     def __post_init__(self) -> None:
         check_count("window", self.window, 1)
@@ -65,6 +68,8 @@ class SearchSettings:
             raise ValueError(f"steps={self.steps!r}; allowed: an odd integer 1..99")
         if isinstance(self.width, bool) or not isinstance(self.width, (int, float)) or not 1 <= self.width <= 1e6:
             raise ValueError(f"width={self.width!r}; allowed 1 <= width <= 1e6")
+        if isinstance(self.cap, bool) or not isinstance(self.cap, (int, float)) or not 0 < self.cap <= 1:
+            raise ValueError(f"cap={self.cap!r}; allowed 0 < cap <= 1 (IoU)")
         if isinstance(self.margin, bool) or not isinstance(self.margin, (int, float)) or not 0 <= self.margin <= 1:
             raise ValueError(f"margin={self.margin!r}; allowed 0 <= margin <= 1 (mean IoU)")
 
@@ -118,11 +123,11 @@ def predicted_boxes(kf: BoxKF, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return cxcywh_to_xywh(boxes), scored.T
 
 
-def candidate_scores(kf: ScaledSortKF, y: np.ndarray, candidates: Mapping[str, np.ndarray]
+def candidate_scores(kf: ScaledSortKF, y: np.ndarray, candidates: Mapping[str, np.ndarray], cap: float = 1.0
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """The mean prediction IoU (n, C) of each of the C ``candidates`` (``{name: (C,)}``, ``kf``'s parameters) on each
-    history ``y`` (n, T, 4) xywh px (module docstring; NaN without a scored frame), and the scored frames (n,) —
-    one batched recursion over the n × C pairs."""
+    """The mean prediction IoU (n, C), each frame's IoU counted up to ``cap``, of each of the C ``candidates``
+    (``{name: (C,)}``, ``kf``'s parameters) on each history ``y`` (n, T, 4) xywh px (module docstring; NaN without
+    a scored frame), and the scored frames (n,) — one batched recursion over the n × C pairs."""
     sizes = {len(np.atleast_1d(v)) for v in candidates.values()}
     if set(candidates) != set(kf.PER_TRACK) or len(sizes) != 1:
         raise ValueError(f"candidates has {sorted(candidates)}; allowed: equal-length arrays of {list(kf.PER_TRACK)}")
@@ -130,7 +135,7 @@ def candidate_scores(kf: ScaledSortKF, y: np.ndarray, candidates: Mapping[str, n
     tiled = {name: np.tile(np.asarray(values, dtype=float), n) for name, values in candidates.items()}
     each = type(kf)(kf.model, **tiled)  # row i * C + c: track i, candidate c
     boxes, scored = predicted_boxes(each, np.repeat(np.asarray(y, dtype=float), n_candidates, axis=0))
-    overlap = np.where(scored, np.nan_to_num(iou(boxes, np.repeat(y, n_candidates, axis=0)), nan=0.0), 0.0)
+    overlap = np.where(scored, np.minimum(np.nan_to_num(iou(boxes, np.repeat(y, n_candidates, axis=0)), nan=0.0), cap), 0.0)
     counts = scored.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = overlap.sum(axis=1) / counts
@@ -161,7 +166,7 @@ class CausalSearch(TrackHistories):
         if not len(due):
             return
         seen = self.y[due, -min(int(self.age[due].max()), self.history):]
-        scores, counts = candidate_scores(self.kf, seen, self.candidates)
+        scores, counts = candidate_scores(self.kf, seen, self.candidates, self.settings.cap)
         penalty = np.full(scores.shape[1], self.settings.margin)
         penalty[self.stock] = 0.0
         choice = np.nanargmax(np.nan_to_num(scores, nan=-1.0) - penalty, axis=1)

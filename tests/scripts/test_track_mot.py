@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from bboxtune.agents.commands import bench_track, track_mot
+from bboxtune.agents.tracking.search_tune import SearchSettings
 from bboxtune.agents.tracking.sort_tracker import TrackerConfig, make_tracker
 from bboxtune.envs.data.mot_io import read_detections, read_results
 
@@ -69,6 +70,14 @@ def test_misuse_of_track_mot(tmp_path: Path, misuse_paths, capsys, monkeypatch) 
                  misuse("--det", det, "--out", "{out}", "--filter", "nope"),
                  misuse("--det", det, "--out", "{out}", "--filter", "tuned", "--params", "sigma_w=3", mentions="--params"),
                  misuse("--det", det, "--out", "{out}", "--pretrained", "mot15_det", mentions="--pretrained"),
+                 misuse("--det", det, "--out", "{out}", "--search-cap", "0.5", mentions="--search-cap"),
+                 misuse("--det", det, "--out", "{out}", "--filter", "search", "--search-cap", "0", mentions="--search-cap"),
+                 misuse("--det", det, "--out", "{out}", "--filter", "search", "--search-width", "0.5",
+                        mentions="--search-width"),
+                 misuse("--det", det, "--out", "{out}", "--filter", "search", "--params", "velocity_noise_scale=2",
+                        mentions="--params"),
+                 misuse("--det", det, "--out", "{out}", "--filter", "sort_kf", "--retune-window", "5",
+                        mentions="--retune-window"),
                  misuse("--det", det, "--out", "{out}", "--filter", "tuned", "--pretrained", "nope", mentions="nope"),
                  misuse("--det", det, "--out", "{out}", "--filter", "kf", "--params", "bogus=1", mentions="bogus"),
                  misuse("--det", det, "--out", "{out}", "--filter", "kf", "--params", "sigma_w=abc", mentions="sigma_w"),
@@ -80,6 +89,20 @@ def test_misuse_of_track_mot(tmp_path: Path, misuse_paths, capsys, monkeypatch) 
                  misuse("--det", bare, "--out", "{out}", mentions="--fps"),
                  misuse("--det", "{file}", "--out", "{out}", mentions="{file}:1")]:
         check_misuse(track_mot.main, case, misuse_paths, capsys, monkeypatch)
+
+
+def test_the_search_filter_writes_the_trackers_output(tmp_path: Path) -> None:
+    det = _det(tmp_path / "Walk")
+    out = tmp_path / "Walk.txt"
+    assert track_mot.main(["--det", str(det), "--out", str(out), "--filter", "search", "--retune-window", "5",
+                           "--search-cap", "0.5", "--search-min-scored", "3"]) == 0
+    detections = read_detections(det)
+    tracker = make_tracker("search", 1 / 25, search=SearchSettings(window=5, cap=0.5, min_scored=3))
+    want = [(r.frame, i, b) for r in tracker.run(detections.frame, detections.box, detections.score)
+            for i, b in zip(r.ids, r.boxes, strict=True)]
+    rows = read_results(out)
+    assert rows.id.tolist() == [i for _, i, _ in want] and len(want) > 50
+    np.testing.assert_allclose(rows.box, np.array([b for *_, b in want]), atol=5e-4)
 
 
 @needs_mot
