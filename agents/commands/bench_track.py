@@ -1,7 +1,7 @@
 """Speed of the SORT-style tracker (bboxtune.agents.tracking) on MOT15 public detections, per filter, with SORT's
 filter (sort_kf) measured in the same run as the peer.
 
-    python scripts/bench_track.py [--mot-root ../shared/data/mot15] [--repeat 3] [--filters sort_kf bytetrack_kf kf tuned]
+    python scripts/bench_track.py [--mot-root ../shared/data/mot15] [--repeat 3] [--filters sort_kf bytetrack_kf search]
 
 Every filter tracks every sequence of the data folder (SORT's settings); the best of --repeat runs is kept. Prints
 frames/s and detections/s per filter and the ratio to sort_kf's rate. Speed is never asserted by the tests; run
@@ -15,7 +15,7 @@ import time
 from bboxtune.agents.cli import ArgumentParser, command, existing_dir, positive_int
 from bboxtune.agents.commands.track_mot import DEFAULT_PRETRAINED, FILTERS
 from bboxtune.agents.smoothing.tuner import load_pretrained
-from bboxtune.agents.tracking.sort_tracker import TUNED, make_tracker
+from bboxtune.agents.tracking.sort_tracker import SEARCH, TUNED, make_tracker
 from bboxtune.envs.data.mot import resolve_root
 from bboxtune.envs.data.mot_io import read_detections, read_sequences_csv
 
@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     p = ArgumentParser(prog="bench_track.py", description=__doc__.split("\n\n")[0])
     p.add_argument("--mot-root", type=existing_dir, default=None, help="MOT15 data folder (default: $MOT_ROOT)")
     p.add_argument("--repeat", type=positive_int, default=3, help="runs per filter; the fastest counts (default 3)")
-    p.add_argument("--filters", nargs="+", choices=FILTERS, default=["sort_kf", "bytetrack_kf", "kf", "ufir_cmn", TUNED])
+    p.add_argument("--filters", nargs="+", choices=FILTERS, default=["sort_kf", "bytetrack_kf", "kf", "ufir_cmn", TUNED, SEARCH])
     args = p.parse_args(argv)
     try:
         root = resolve_root(args.mot_root)

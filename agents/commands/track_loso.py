@@ -11,8 +11,10 @@ ID switches per identity with that setting, and its ΔIDF1 / ΔMOTA against each
 the folds' mean Δ and a bootstrap over sequences (the fold deltas resampled with replacement, ``--boot`` times,
 seed ``--seed``): the 95 % interval of the mean and the fraction of resamples with a mean > 0.
 
-Writes ``--out`` (CSV, one row per fold, then a ``mean`` row) and the same stem with ``.md`` (the fold table and
-the summary), atomically; existing files are never overwritten. Bad input: one line, exit status 2.
+Writes ``--out`` (CSV, one row per fold, then a ``mean`` row), the same stem with ``.md`` (the fold table and
+the summary) and with ``_runs.csv`` (every run's motmetrics counts per sequence: run ``sort_kf``, ``bytetrack_kf``
+or the grid setting's index), atomically; existing files are never overwritten. Bad input: one line, exit
+status 2.
 """
 
 from __future__ import annotations
@@ -128,8 +130,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.out.suffix != ".csv":
         p.error(f"--out {args.out}: allowed a .csv file name (the .md beside it is written too)")
     summary_path = args.out.with_suffix(".md")
-    if summary_path.exists():
-        p.error(f"--out: {summary_path} exists; allowed: a new file")
+    runs_path = args.out.with_name(args.out.stem + "_runs.csv")
+    for path in (summary_path, runs_path):
+        if path.exists():
+            p.error(f"--out: {path} exists; allowed: a new file")
     try:
         root = resolve_root(args.mot_root)
         data = {name: Sequence(*_detections(root / name / "det" / "det.txt"),
@@ -157,6 +161,9 @@ def main(argv: list[str] | None = None) -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out, csv_text(columns, [[f[c] for c in columns] for f in folds] + [mean_row]))
     write_text_atomic(summary_path, markdown(folds, summary))
+    write_text_atomic(runs_path, csv_text(["run", "sequence", *COUNTS], [[key, seq, *(counts[c] for c in COUNTS)]
+                                                                         for key, by_sequence in table.items()
+                                                                         for seq, counts in by_sequence.items()]))
     print(markdown(folds, summary), end="")
     return 0
 

@@ -51,13 +51,13 @@ STOCK: dict[str, float] = dict(ScaledSortKF.DEFAULTS)  # SORT's filter
 class SearchSettings:
     """The search's hyperparameters (module docstring)."""
 
-    window: int = 10  # frames between re-tunes
+    window: int = 5  # frames between re-tunes
     history: int = 50  # past frames a track's candidates are scored on
     width: float = 4.0  # the grid's largest scale factor (its smallest: 1 / width)
     steps: int = 5  # grid points per scale (odd)
     margin: float = 0.0  # mean-IoU advantage a candidate needs over SORT's stock filter
     min_scored: int = 5  # scored frames a track needs before it leaves SORT's stock filter
-    cap: float = 1.0  # IoU counted up to this (the association needs IoU >= its threshold, not a perfect box)
+    cap: float = 0.5  # IoU counted up to this (the association needs IoU >= its threshold, not a perfect box)
 
     def __post_init__(self) -> None:
         check_count("window", self.window, 1)
