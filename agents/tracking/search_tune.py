@@ -35,10 +35,12 @@ import numpy as np
 
 from bboxtune import filters
 from bboxtune.agents.tracking.retune import TrackHistories, check_count
+from bboxtune.agents.tracking.search_kernels import AREA, prior_means
 from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.envs.data.metrics import iou
+from bboxtune.filters import jit
 from bboxtune.filters.bytetrack_kf import BoxKF, M, _Variance, check_boxes, initiate, update_state
-from bboxtune.filters.sort_kf import ScaledSortKF
+from bboxtune.filters.sort_kf import ScaledSortKF, SortKF
 
 if TYPE_CHECKING:
     from bboxtune.agents.tracking.filter_bank import FilterBank
@@ -104,6 +106,21 @@ def predicted_boxes(kf: BoxKF, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     P_start, Q = _Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n))
     R = _Variance(noise.measurement, (M, n))
     z = kf._measure(Y.transpose(1, 2, 0))  # (T, 4, n)
+    variances = (P_start.fixed, Q.fixed, R.fixed)
+    if jit.enabled() and isinstance(kf, SortKF) and all(v is not None for v in variances):
+        prior, scored = prior_means(np.ascontiguousarray(z), *(np.ascontiguousarray(v) for v in variances), AREA)
+    else:  # the reference: the batch filter's own steps
+        prior, scored = _prior_means(kf, z, P_start, Q, R)
+    boxes = prior.transpose(2, 0, 1).copy()
+    kf._to_boxes(boxes)
+    return cxcywh_to_xywh(boxes), scored.T
+
+
+def _prior_means(kf: BoxKF, z: np.ndarray, P_start: _Variance, Q: _Variance, R: _Variance
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bboxtune.agents.tracking.search_kernels.prior_means` in numpy, for any :class:`BoxKF`: the predicted
+    means (T, 4, n) on measured coordinates ``z`` (T, 4, n) and where they are scored (T, n)."""
+    T, _, n = z.shape
     detected = ~np.isnan(z[:, 0])  # (T, n)
     X = np.full((5, M, n), np.nan)  # the state layout of bboxtune.filters.bytetrack_kf
     prior = np.empty((T, M, n))
@@ -118,9 +135,7 @@ def predicted_boxes(kf: BoxKF, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         new = np.flatnonzero(here & ~began)
         if len(new):
             initiate(X, z[t][:, new], P_start, new)
-    boxes = prior.transpose(2, 0, 1).copy()
-    kf._to_boxes(boxes)
-    return cxcywh_to_xywh(boxes), scored.T
+    return prior, scored
 
 
 def candidate_scores(kf: ScaledSortKF, y: np.ndarray, candidates: Mapping[str, np.ndarray], cap: float = 1.0
