@@ -16,8 +16,9 @@ pair (k_v, k_r) with k = ``width`` ** u, u on ``steps`` points evenly spaced in 
 
 * a track runs SORT's stock filter until it has ``min_scored`` scored frames in view (a sensible default before
   enough history);
-* then the candidate with the best score, where every candidate but the stock one pays ``margin`` (mean IoU):
-  shrinkage toward SORT's filter, which the tracker keeps unless the evidence for another is clear.
+* then the candidate with the best score, where every candidate but the stock one pays ``margin`` (mean IoU) and
+  ties go to the stock one (with a cap below 1 many candidates reach the cap on every frame): shrinkage toward
+  SORT's filter, which the tracker keeps unless the evidence for another is clear.
 
 All tracks due in a frame and all candidates run in one batched recursion ((tracks × candidates) columns over
 ``history`` frames). Causal: a track's history holds its matched detections up to the current frame; never a
@@ -184,7 +185,8 @@ class CausalSearch(TrackHistories):
         scores, counts = candidate_scores(self.kf, seen, self.candidates, self.settings.cap)
         penalty = np.full(scores.shape[1], self.settings.margin)
         penalty[self.stock] = 0.0
-        choice = np.nanargmax(np.nan_to_num(scores, nan=-1.0) - penalty, axis=1)
-        choice[counts < self.settings.min_scored] = self.stock
+        adjusted = np.nan_to_num(scores, nan=-1.0) - penalty
+        choice = np.argmax(adjusted, axis=1)
+        choice[(adjusted[:, self.stock] >= adjusted.max(axis=1)) | (counts < self.settings.min_scored)] = self.stock
         bank.set_params(due, {name: values[choice] for name, values in self.candidates.items()})
         self.calls += len(due)

@@ -111,9 +111,11 @@ def test_search_tracking_is_causal() -> None:
     assert not np.array_equal(np.array([b for *_, b in full]), np.array([b for *_, b in sort_rows]))  # it re-tuned
 
 
-def test_a_full_margin_keeps_sorts_filter() -> None:
+@pytest.mark.parametrize("settings", [SearchSettings(window=5, min_scored=3, margin=1.0),
+                                      SearchSettings(window=5, min_scored=3, cap=1e-3)])  # every candidate at the cap
+def test_a_full_margin_or_a_tie_keeps_sorts_filter(settings: SearchSettings) -> None:
     frames, boxes, scores = _walkers()
-    rows, search = _tracked(frames, boxes, scores, 90, SearchSettings(window=5, min_scored=3, margin=1.0))
+    rows, search = _tracked(frames, boxes, scores, 90, settings)
     assert search.calls > 0
     sort_rows = [(r.frame, int(i), b) for r in make_tracker("sort_kf", TAU).run(frames, boxes, scores)
                  for i, b in zip(r.ids, r.boxes, strict=True)]
