@@ -28,7 +28,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from bboxtune.filters import jit
-from bboxtune.filters.fir_core import FIRFilter, check_fir_params
+from bboxtune.filters.fir_core import FIRFilter, check_fir_params, correlate
 from bboxtune.filters.model import matrix_powers
 from bboxtune.filters.window_scan import DATA, STRUCTURE, BlockLayout, FrameModel, window_estimates
 from bboxtune.filters.window_scan_kernels import window_kf_scan
@@ -190,14 +190,47 @@ class KalmanWindowFIR(FIRFilter):
         the first valid and the current sample (scaled by σ_v), ``gap`` (P,) frames between them; ``params``
         arrays (P,). Returns x (P, K) and its error covariance (P, K, K), both in units of σ_v."""
 
-    def _compiled_windows(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, group: np.ndarray,
-                          gparams: dict[str, np.ndarray], L_c: np.ndarray) -> bool:
-        """With the kernels on: start-up frames and windows holding a NaN by
-        :func:`bboxtune.filters.window_scan_kernels.window_kf_scan` (the references: :meth:`_startup`, :meth:`_masked`).
-        Runs of 4 consecutive channels (a box track's coordinates) with the same missing frames and parameters share
-        one composition."""
+    def _run_frames(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:
+        """Kernels on: channels without a missing sample take their full windows from the FFT kernel and their start-up
+        frames from :func:`bboxtune.filters.window_scan_kernels.window_kf_scan`; channels with a missing sample take
+        every frame from the scan (with 5 % of frames missing and N = 60, 95 % of the windows hold a gap: their FFT
+        estimates would be overwritten). Off: the reference (FFT kernel, :meth:`_startup`, :meth:`_masked`)."""
         if not jit.enabled():
-            return False
+            return super()._run_frames(z, params, positions_only)
+        valid = np.isfinite(z)
+        group, gparams = self._groups(params)
+        L_c = (gparams["horizon"] + self.EXTRA_SAMPLES)[group]  # (C,) window length of each channel
+        gappy = ~valid.all(axis=1)
+        X = self._clean_full_windows(z, gappy, group, gparams, positions_only)
+        if self._scan(X, z, valid, gappy, group, gparams, L_c):  # a window without a finite estimate: reported
+            return self._fallback(X, z, valid, L_c, group, gparams)
+        return X
+
+    def _clean_full_windows(self, z: np.ndarray, gappy: np.ndarray, group: np.ndarray, gparams: dict[str, np.ndarray],
+                            positions_only: bool) -> np.ndarray:
+        """X (C, T, 2) holding the FFT kernel's estimates of the full windows of the channels that are not ``gappy``
+        (their velocities NaN with ``positions_only``); every other entry is left for the scan to write."""
+        C, T = z.shape
+        if gappy.all():
+            return np.empty((C, T, 2))
+        clean = slice(None) if not gappy.any() else np.flatnonzero(~gappy)
+        used, local = np.unique(group[clean], return_inverse=True)  # only the gains the clean channels apply
+        W = self._full_gains({name: v[used] for name, v in gparams.items()}, T)
+        out = correlate(z[clean], W[:, :1] if positions_only else W, local.reshape(-1), wrap=True)
+        if isinstance(clean, slice) and not positions_only:
+            return np.ascontiguousarray(out)
+        X = np.empty((C, T, 2))
+        X[clean, :, :out.shape[2]] = out
+        if positions_only:
+            X[clean, :, 1] = np.nan
+        return X
+
+    def _scan(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, gappy: np.ndarray, group: np.ndarray,
+              gparams: dict[str, np.ndarray], L_c: np.ndarray) -> int:
+        """:func:`bboxtune.filters.window_scan_kernels.window_kf_scan` on every channel: all frames of the ``gappy``
+        ones, the start-up frames of the others (with the fallback of unobservable windows); returns its count of
+        failed estimates. Runs of 4 consecutive channels (a box track's coordinates) with the same missing frames and
+        parameters share one composition."""
         C, T = z.shape
         k = 1
         if C % 4 == 0:
@@ -208,10 +241,9 @@ class KalmanWindowFIR(FIRFilter):
         sv = per["sigma_v"].astype(float)
         P0 = self.scaled_prior(sv) if self.PRIOR_AT_START else np.zeros((sv.size, 2, 2))  # type: ignore[attr-defined]
         axis = self.model.axis()
-        window_kf_scan(np.ascontiguousarray(z), valid, members, L_c[members[:, 0]].astype(np.int64),
-                       (per["sigma_w"] / sv) ** 2, sv, self.PRIOR_AT_START, np.ascontiguousarray(P0, dtype=float),
-                       np.ascontiguousarray(axis.F), np.ascontiguousarray(axis.B[:, 0]), X)
-        return True
+        return window_kf_scan(np.ascontiguousarray(z), valid, members, L_c[members[:, 0]].astype(np.int64),
+                              (per["sigma_w"] / sv) ** 2, sv, self.PRIOR_AT_START, np.ascontiguousarray(P0, dtype=float),
+                              np.ascontiguousarray(axis.F), np.ascontiguousarray(axis.B[:, 0]), gappy[members[:, 0]], X)
 
     def _startup(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, holes: np.ndarray, group: np.ndarray,
                  gparams: dict[str, np.ndarray], L_c: np.ndarray) -> None:
