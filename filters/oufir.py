@@ -30,6 +30,7 @@ import scipy.linalg as sla
 from bboxtune.filters import jit
 from bboxtune.filters.fir_core import FIRFilter, check_fir_params, correlate
 from bboxtune.filters.model import matrix_powers
+from bboxtune.filters.threads import in_threads
 from bboxtune.filters.window_scan import DATA, STRUCTURE, BlockLayout, FrameModel, window_estimates
 from bboxtune.filters.window_scan_kernels import window_kf_scan
 
@@ -239,11 +240,18 @@ class KalmanWindowFIR(FIRFilter):
         members = np.arange(C).reshape(-1, k)
         per = {name: v[group[members[:, 0]]] for name, v in gparams.items()}
         sv = per["sigma_v"].astype(float)
-        P0 = self.scaled_prior(sv) if self.PRIOR_AT_START else np.zeros((sv.size, 2, 2))  # type: ignore[attr-defined]
+        P0 = np.ascontiguousarray(self.scaled_prior(sv) if self.PRIOR_AT_START  # type: ignore[attr-defined]
+                                  else np.zeros((sv.size, 2, 2)), dtype=float)
         axis = self.model.axis()
-        return window_kf_scan(np.ascontiguousarray(z), valid, members, L_c[members[:, 0]].astype(np.int64),
-                              (per["sigma_w"] / sv) ** 2, sv, self.PRIOR_AT_START, np.ascontiguousarray(P0, dtype=float),
-                              np.ascontiguousarray(axis.F), np.ascontiguousarray(axis.B[:, 0]), gappy[members[:, 0]], X)
+        z, F, B = np.ascontiguousarray(z), np.ascontiguousarray(axis.F), np.ascontiguousarray(axis.B[:, 0])
+        L, q, every = L_c[members[:, 0]].astype(np.int64), (per["sigma_w"] / sv) ** 2, gappy[members[:, 0]]
+
+        def scan(part: slice) -> int:  # the groups `part`, in a thread of its own (the kernel releases the GIL)
+            return window_kf_scan(z, valid, members[part], L[part], q[part], sv[part], self.PRIOR_AT_START, P0[part],
+                                  F, B, every[part], X)
+
+        frames = np.where(every, T, np.minimum(L, T))  # frames the scan visits per group
+        return sum(in_threads(scan, members.shape[0], int(frames.mean()) if frames.size else 0))
 
     def _startup(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, holes: np.ndarray, group: np.ndarray,
                  gparams: dict[str, np.ndarray], L_c: np.ndarray) -> None:
