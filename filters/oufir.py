@@ -30,9 +30,8 @@ import scipy.linalg as sla
 from bboxtune.filters import jit
 from bboxtune.filters.fir_core import FIRFilter, check_fir_params, correlate
 from bboxtune.filters.model import matrix_powers
-from bboxtune.filters.threads import in_threads
 from bboxtune.filters.window_scan import DATA, STRUCTURE, BlockLayout, FrameModel, window_estimates
-from bboxtune.filters.window_scan_kernels import window_kf_scan
+from bboxtune.filters.window_scan_kernels import scan_channels
 
 SCAN_SAMPLES = 1 << 18  # channel-frames per batch of the window scan (3 arrays of 14 floats each: ~90 MB)
 COND_MAX = 1e8  # bound on cond(Ψ_Y/σ_v²) above which the ML least-squares form replaces the Cholesky form
@@ -172,13 +171,11 @@ class KalmanWindowFIR(FIRFilter):
     the window's first valid sample(s) — OUFIR (Alg. 4) and OFIR (Alg. 2).
 
     Clean full windows use the batch gain :meth:`window_gain` (cached, applied as a kernel). Start-up frames (the
-    growing window 0 … n, one run per channel) are estimated by that recursion on the data itself, for all channels
-    at once (a loop over the window's time steps, vectorised; NaN = predict only) — exact, and no O(L³) gain per
-    start-up point. Full windows holding a NaN — with 5 % missing frames and N = 60, 95 % of all windows — were
-    estimated the same way, one KF of L steps per window (O(L) per output: 75× the clean-kernel time at B = 20,000
-    box tracks); they now compose per-frame elements associatively (:mod:`bboxtune.filters.window_scan`: O(1) 2×2
-    compositions per output, whatever L, equal to the per-window KF to ~1e-13). Data are scaled by σ_v (R = 1,
-    Q = (σ_w/σ_v)² B Bᵀ). A window with fewer than 2 valid samples gives NaN here (fir_core's fallback)."""
+    growing window 0 … n) run that recursion on the data, all channels at once (NaN = predict only): exact, no O(L³)
+    gain per start-up point. Full windows holding a NaN (95 % of them with 5 % missing frames and N = 60) compose
+    per-frame elements associatively (:mod:`bboxtune.filters.window_scan`: O(1) 2×2 compositions per output whatever
+    L, equal to the per-window KF to ~1e-13). Data are scaled by σ_v (R = 1, Q = (σ_w/σ_v)² B Bᵀ). A window with
+    fewer than 2 valid samples gives NaN here (fir_core's fallback). The compiled path: :meth:`_run_frames`."""
 
     START_COUNT: ClassVar[int]  # valid samples the start state consumes
     PRIOR_AT_START: ClassVar[bool] = False  # the KF starts after the oldest valid sample a from [y_a, 0], P0 (OFIR)
@@ -193,7 +190,7 @@ class KalmanWindowFIR(FIRFilter):
 
     def _run_frames(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:
         """Kernels on: channels without a missing sample take their full windows from the FFT kernel and their start-up
-        frames from :func:`bboxtune.filters.window_scan_kernels.window_kf_scan`; channels with a missing sample take
+        frames from :func:`bboxtune.filters.window_scan_kernels.scan_channels`; channels with a missing sample take
         every frame from the scan (with 5 % of frames missing and N = 60, 95 % of the windows hold a gap: their FFT
         estimates would be overwritten). Off: the reference (FFT kernel, :meth:`_startup`, :meth:`_masked`)."""
         if not jit.enabled():
@@ -203,7 +200,11 @@ class KalmanWindowFIR(FIRFilter):
         L_c = (gparams["horizon"] + self.EXTRA_SAMPLES)[group]  # (C,) window length of each channel
         gappy = ~valid.all(axis=1)
         X = self._clean_full_windows(z, gappy, group, gparams, positions_only)
-        if self._scan(X, z, valid, gappy, group, gparams, L_c):  # a window without a finite estimate: reported
+        sv = gparams["sigma_v"][group].astype(float)
+        P0 = self.scaled_prior(sv) if self.PRIOR_AT_START else np.zeros((sv.size, 2, 2))  # type: ignore[attr-defined]
+        axis = self.model.axis()
+        if scan_channels(X, z, valid, gappy, group, L_c, (gparams["sigma_w"][group] / sv) ** 2, sv, self.PRIOR_AT_START,
+                         P0, axis.F, axis.B[:, 0]):  # a window without a finite estimate: reported
             return self._fallback(X, z, valid, L_c, group, gparams)
         return X
 
@@ -225,33 +226,6 @@ class KalmanWindowFIR(FIRFilter):
         if positions_only:
             X[clean, :, 1] = np.nan
         return X
-
-    def _scan(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, gappy: np.ndarray, group: np.ndarray,
-              gparams: dict[str, np.ndarray], L_c: np.ndarray) -> int:
-        """:func:`bboxtune.filters.window_scan_kernels.window_kf_scan` on every channel: all frames of the ``gappy``
-        ones, the start-up frames of the others (with the fallback of unobservable windows); returns its count of
-        failed estimates. Runs of 4 consecutive channels (a box track's coordinates) with the same missing frames and
-        parameters share one composition."""
-        C, T = z.shape
-        k = 1
-        if C % 4 == 0:
-            quad = np.arange(C).reshape(-1, 4)
-            k = 4 if (group[quad] == group[quad[:, :1]]).all() and (valid[quad] == valid[quad[:, :1]]).all() else 1
-        members = np.arange(C).reshape(-1, k)
-        per = {name: v[group[members[:, 0]]] for name, v in gparams.items()}
-        sv = per["sigma_v"].astype(float)
-        P0 = np.ascontiguousarray(self.scaled_prior(sv) if self.PRIOR_AT_START  # type: ignore[attr-defined]
-                                  else np.zeros((sv.size, 2, 2)), dtype=float)
-        axis = self.model.axis()
-        z, F, B = np.ascontiguousarray(z), np.ascontiguousarray(axis.F), np.ascontiguousarray(axis.B[:, 0])
-        L, q, every = L_c[members[:, 0]].astype(np.int64), (per["sigma_w"] / sv) ** 2, gappy[members[:, 0]]
-
-        def scan(part: slice) -> int:  # the groups `part`, in a thread of its own (the kernel releases the GIL)
-            return window_kf_scan(z, valid, members[part], L[part], q[part], sv[part], self.PRIOR_AT_START, P0[part],
-                                  F, B, every[part], X)
-
-        frames = np.where(every, T, np.minimum(L, T))  # frames the scan visits per group
-        return sum(in_threads(scan, members.shape[0], int(frames.mean()) if frames.size else 0))
 
     def _startup(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, holes: np.ndarray, group: np.ndarray,
                  gparams: dict[str, np.ndarray], L_c: np.ndarray) -> None:

@@ -19,7 +19,8 @@ The helpers take and return them as tuples of floats — no arrays, so no refere
 with array arguments, inlined, spent half the time on it) — split into a structure step, which also returns the
 coefficients its data step needs, and a data step per channel. The numpy references are
 :meth:`bboxtune.filters.oufir.KalmanWindowFIR._startup` and :meth:`~bboxtune.filters.oufir.KalmanWindowFIR._masked`
-(``$BBOXTUNE_JIT=0``), with the FFT kernel for the clean full windows.
+(``$BBOXTUNE_JIT=0``), with the FFT kernel for the clean full windows. :func:`scan_channels` groups the channels and
+splits the groups over threads.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from bboxtune.filters import jit
+from bboxtune.filters.threads import in_threads
 
 Floats = tuple[float, ...]
 
@@ -304,3 +306,27 @@ def window_kf_scan(z: np.ndarray, valid: np.ndarray, members: np.ndarray, L: np.
                 if np.isnan(x0):
                     failures += 1
     return failures
+
+
+def scan_channels(X: np.ndarray, z: np.ndarray, valid: np.ndarray, every: np.ndarray, group: np.ndarray, L: np.ndarray,
+                  q: np.ndarray, sigma_v: np.ndarray, prior: bool, P0: np.ndarray, F: np.ndarray, B: np.ndarray) -> int:
+    """:func:`window_kf_scan` on the channels of ``z`` (C, T): every frame of those marked ``every`` (C,), the start-up
+    frames of the others; per channel the gain parameter group, L, q, σ_v (C,) and P0 (C, 2, 2). 4 consecutive
+    channels (a box) with the same missing frames and group share one scan. Large calls run in threads, each on
+    its own groups (:func:`bboxtune.filters.threads.in_threads`). Returns the kernel's count of failed estimates."""
+    C, T = z.shape
+    k = 1
+    if C % 4 == 0:
+        quad = np.arange(C).reshape(-1, 4)
+        k = 4 if (group[quad] == group[quad[:, :1]]).all() and (valid[quad] == valid[quad[:, :1]]).all() else 1
+    members = np.arange(C).reshape(-1, k)
+    lead = members[:, 0]
+    L, q, sv, every = L[lead].astype(np.int64), q[lead].astype(float), sigma_v[lead].astype(float), every[lead]
+    P0 = np.ascontiguousarray(P0[lead], dtype=float)
+    z, F, B = np.ascontiguousarray(z, dtype=float), np.ascontiguousarray(F, dtype=float), np.ascontiguousarray(B, dtype=float)
+
+    def scan(part: slice) -> int:  # the groups `part`, in a thread of its own (the kernel releases the GIL)
+        return window_kf_scan(z, valid, members[part], L[part], q[part], sv[part], prior, P0[part], F, B, every[part], X)
+
+    frames = np.where(every, T, np.minimum(L, T))  # frames the scan visits per group
+    return sum(in_threads(scan, members.shape[0], int(frames.mean()) if frames.size else 0))

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bboxtune import filters
-from bboxtune.filters import jit, oufir, threads
+from bboxtune.filters import jit, threads, window_scan_kernels
 from bboxtune.filters.ufir import ufir_iterative
 
 TAU = 1 / 30
@@ -139,7 +139,7 @@ def test_window_kf_scan_in_threads_equals_one_thread_bit_for_bit(name: str, monk
         slices.append(len(out))
         return out
 
-    monkeypatch.setattr(oufir, "in_threads", counted)
+    monkeypatch.setattr(window_scan_kernels, "in_threads", counted)
     monkeypatch.setattr(threads, "MIN_WORK", 1)
     monkeypatch.setenv(threads.KERNEL_ENV_VAR, "3")
     with kernels(True):
@@ -157,7 +157,7 @@ def test_window_kf_scan_in_threads_equals_one_thread_bit_for_bit(name: str, monk
 def test_a_failed_scan_estimate_is_reported_not_replaced(monkeypatch: pytest.MonkeyPatch) -> None:
     """A window of >= 2 valid samples whose scan estimate is NaN (counted by the kernel) raises FloatingPointError
     instead of taking the unobservable windows' fallback."""
-    scan = oufir.window_kf_scan
+    scan = window_scan_kernels.window_kf_scan
 
     def failing(*args: object) -> int:
         scan(*args)
@@ -165,7 +165,7 @@ def test_a_failed_scan_estimate_is_reported_not_replaced(monkeypatch: pytest.Mon
         X[0, -1] = np.nan  # type: ignore[index]
         return 1
 
-    monkeypatch.setattr(oufir, "window_kf_scan", failing)
+    monkeypatch.setattr(window_scan_kernels, "window_kf_scan", failing)
     y = tracks(1, 2, 40, "isolated")
     with kernels(True), pytest.raises(FloatingPointError, match="no finite estimate for channel 0 at frame 39"):
         filters.make("oufir", filters.constant_velocity(TAU, ndim=4), horizon=10).run(y)
