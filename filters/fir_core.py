@@ -22,8 +22,8 @@ A back end with a cheaper exact form for the start-up or the NaN windows (the le
 cumulative sums / FFT moment sums, no per-pattern gains; the window-KF family: the associative scan of
 :mod:`bboxtune.filters.window_scan`) overrides ``_startup`` / ``_masked``; with the compiled kernels on
 (:mod:`bboxtune.filters.jit`) the UFIR family runs every frame in :mod:`bboxtune.filters.ufir_kernels`, the window-KF family
-its start-up and NaN windows in :mod:`bboxtune.filters.window_scan_kernels` (``_compiled_windows``); the numpy paths
-stay as their references.
+every frame of a channel with a missing sample and the start-up frames of the others in
+:mod:`bboxtune.filters.window_scan_kernels` (both override ``_run_frames``); the numpy paths stay as their references.
 """
 
 from __future__ import annotations
@@ -194,9 +194,7 @@ class FIRFilter(Filter):
                                            W[:, :1] if positions_only and clean else W, group, wrap=True))
         if X.shape[2] == 1:
             X = np.concatenate([X, np.full_like(X, np.nan)], axis=2)
-        if self._compiled_windows(X, z, valid, group, gparams, L_c):
-            pass  # start-up and NaN windows filled by a compiled kernel
-        elif clean:  # no window holds a NaN
+        if clean:  # no window holds a NaN
             self._startup(X, z, valid, np.zeros((C, T), bool), group, gparams, L_c)
         else:
             t = np.arange(T)
@@ -207,16 +205,16 @@ class FIRFilter(Filter):
             self._startup(X, z, valid, holes & startup, group, gparams, L_c)
             cs, ns = np.nonzero(holes & ~startup)
             self._masked(X, z, valid, cs, ns, L_c[cs], group, gparams)
-        cs, ns = np.nonzero(np.isnan(X[..., 0]))  # unobservable windows
+        return self._fallback(X, z, valid, L_c, group, gparams)
+
+    def _fallback(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, L_c: np.ndarray, group: np.ndarray,
+                  gparams: dict[str, np.ndarray]) -> np.ndarray:
+        """X (C, T, 2) with its unobservable windows (NaN positions) given the latest valid measurement and velocity 0,
+        after :meth:`_check_unobservable` made sure they are unobservable."""
+        cs, ns = np.nonzero(np.isnan(X[..., 0]))
         self._check_unobservable(valid, cs, ns, L_c, group, gparams)
         X[cs, ns] = _hold_last(z, valid, cs, ns)
         return X
-
-    def _compiled_windows(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, group: np.ndarray,
-                          gparams: dict[str, np.ndarray], L_c: np.ndarray) -> bool:
-        """Fill the start-up frames and the windows holding a NaN of X (C, T, 2) by a compiled kernel and return
-        True, or return False for the numpy paths :meth:`_startup` / :meth:`_masked` (the default; their reference)."""
-        return False
 
     def _check_unobservable(self, valid: np.ndarray, cs: np.ndarray, ns: np.ndarray, L_c: np.ndarray,
                             group: np.ndarray, gparams: dict[str, np.ndarray]) -> None:

@@ -28,10 +28,10 @@ import numpy as np
 import scipy.linalg as sla
 
 from bboxtune.filters import jit
-from bboxtune.filters.fir_core import FIRFilter, check_fir_params
+from bboxtune.filters.fir_core import FIRFilter, check_fir_params, correlate
 from bboxtune.filters.model import matrix_powers
 from bboxtune.filters.window_scan import DATA, STRUCTURE, BlockLayout, FrameModel, window_estimates
-from bboxtune.filters.window_scan_kernels import window_kf_scan
+from bboxtune.filters.window_scan_kernels import scan_channels
 
 SCAN_SAMPLES = 1 << 18  # channel-frames per batch of the window scan (3 arrays of 14 floats each: ~90 MB)
 COND_MAX = 1e8  # bound on cond(Ψ_Y/σ_v²) above which the ML least-squares form replaces the Cholesky form
@@ -171,13 +171,11 @@ class KalmanWindowFIR(FIRFilter):
     the window's first valid sample(s) — OUFIR (Alg. 4) and OFIR (Alg. 2).
 
     Clean full windows use the batch gain :meth:`window_gain` (cached, applied as a kernel). Start-up frames (the
-    growing window 0 … n, one run per channel) are estimated by that recursion on the data itself, for all channels
-    at once (a loop over the window's time steps, vectorised; NaN = predict only) — exact, and no O(L³) gain per
-    start-up point. Full windows holding a NaN — with 5 % missing frames and N = 60, 95 % of all windows — were
-    estimated the same way, one KF of L steps per window (O(L) per output: 75× the clean-kernel time at B = 20,000
-    box tracks); they now compose per-frame elements associatively (:mod:`bboxtune.filters.window_scan`: O(1) 2×2
-    compositions per output, whatever L, equal to the per-window KF to ~1e-13). Data are scaled by σ_v (R = 1,
-    Q = (σ_w/σ_v)² B Bᵀ). A window with fewer than 2 valid samples gives NaN here (fir_core's fallback)."""
+    growing window 0 … n) run that recursion on the data, all channels at once (NaN = predict only): exact, no O(L³)
+    gain per start-up point. Full windows holding a NaN (95 % of them with 5 % missing frames and N = 60) compose
+    per-frame elements associatively (:mod:`bboxtune.filters.window_scan`: O(1) 2×2 compositions per output whatever
+    L, equal to the per-window KF to ~1e-13). Data are scaled by σ_v (R = 1, Q = (σ_w/σ_v)² B Bᵀ). A window with
+    fewer than 2 valid samples gives NaN here (fir_core's fallback). The compiled path: :meth:`_run_frames`."""
 
     START_COUNT: ClassVar[int]  # valid samples the start state consumes
     PRIOR_AT_START: ClassVar[bool] = False  # the KF starts after the oldest valid sample a from [y_a, 0], P0 (OFIR)
@@ -190,28 +188,44 @@ class KalmanWindowFIR(FIRFilter):
         the first valid and the current sample (scaled by σ_v), ``gap`` (P,) frames between them; ``params``
         arrays (P,). Returns x (P, K) and its error covariance (P, K, K), both in units of σ_v."""
 
-    def _compiled_windows(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, group: np.ndarray,
-                          gparams: dict[str, np.ndarray], L_c: np.ndarray) -> bool:
-        """With the kernels on: start-up frames and windows holding a NaN by
-        :func:`bboxtune.filters.window_scan_kernels.window_kf_scan` (the references: :meth:`_startup`, :meth:`_masked`).
-        Runs of 4 consecutive channels (a box track's coordinates) with the same missing frames and parameters share
-        one composition."""
+    def _run_frames(self, z: np.ndarray, params: dict[str, Any], positions_only: bool = False) -> np.ndarray:
+        """Kernels on: channels without a missing sample take their full windows from the FFT kernel and their start-up
+        frames from :func:`bboxtune.filters.window_scan_kernels.scan_channels`; channels with a missing sample take
+        every frame from the scan (with 5 % of frames missing and N = 60, 95 % of the windows hold a gap: their FFT
+        estimates would be overwritten). Off: the reference (FFT kernel, :meth:`_startup`, :meth:`_masked`)."""
         if not jit.enabled():
-            return False
-        C, T = z.shape
-        k = 1
-        if C % 4 == 0:
-            quad = np.arange(C).reshape(-1, 4)
-            k = 4 if (group[quad] == group[quad[:, :1]]).all() and (valid[quad] == valid[quad[:, :1]]).all() else 1
-        members = np.arange(C).reshape(-1, k)
-        per = {name: v[group[members[:, 0]]] for name, v in gparams.items()}
-        sv = per["sigma_v"].astype(float)
+            return super()._run_frames(z, params, positions_only)
+        valid = np.isfinite(z)
+        group, gparams = self._groups(params)
+        L_c = (gparams["horizon"] + self.EXTRA_SAMPLES)[group]  # (C,) window length of each channel
+        gappy = ~valid.all(axis=1)
+        X = self._clean_full_windows(z, gappy, group, gparams, positions_only)
+        sv = gparams["sigma_v"][group].astype(float)
         P0 = self.scaled_prior(sv) if self.PRIOR_AT_START else np.zeros((sv.size, 2, 2))  # type: ignore[attr-defined]
         axis = self.model.axis()
-        window_kf_scan(np.ascontiguousarray(z), valid, members, L_c[members[:, 0]].astype(np.int64),
-                       (per["sigma_w"] / sv) ** 2, sv, self.PRIOR_AT_START, np.ascontiguousarray(P0, dtype=float),
-                       np.ascontiguousarray(axis.F), np.ascontiguousarray(axis.B[:, 0]), X)
-        return True
+        if scan_channels(X, z, valid, gappy, group, L_c, (gparams["sigma_w"][group] / sv) ** 2, sv, self.PRIOR_AT_START,
+                         P0, axis.F, axis.B[:, 0]):  # a window without a finite estimate: reported
+            return self._fallback(X, z, valid, L_c, group, gparams)
+        return X
+
+    def _clean_full_windows(self, z: np.ndarray, gappy: np.ndarray, group: np.ndarray, gparams: dict[str, np.ndarray],
+                            positions_only: bool) -> np.ndarray:
+        """X (C, T, 2) holding the FFT kernel's estimates of the full windows of the channels that are not ``gappy``
+        (their velocities NaN with ``positions_only``); every other entry is left for the scan to write."""
+        C, T = z.shape
+        if gappy.all():
+            return np.empty((C, T, 2))
+        clean = slice(None) if not gappy.any() else np.flatnonzero(~gappy)
+        used, local = np.unique(group[clean], return_inverse=True)  # only the gains the clean channels apply
+        W = self._full_gains({name: v[used] for name, v in gparams.items()}, T)
+        out = correlate(z[clean], W[:, :1] if positions_only else W, local.reshape(-1), wrap=True)
+        if isinstance(clean, slice) and not positions_only:
+            return np.ascontiguousarray(out)
+        X = np.empty((C, T, 2))
+        X[clean, :, :out.shape[2]] = out
+        if positions_only:
+            X[clean, :, 1] = np.nan
+        return X
 
     def _startup(self, X: np.ndarray, z: np.ndarray, valid: np.ndarray, holes: np.ndarray, group: np.ndarray,
                  gparams: dict[str, np.ndarray], L_c: np.ndarray) -> None:

@@ -1,4 +1,5 @@
-"""BLAS threads inside the filter recursions: one, unless ``$BBOXTUNE_BLAS_THREADS`` says otherwise.
+"""Threads of the filters: BLAS limited to one inside the filter recursions (unless ``$BBOXTUNE_BLAS_THREADS`` says
+otherwise), and the nogil kernels that split their work over the cores (``$BBOXTUNE_KERNEL_THREADS``).
 
 The matrices here are tiny (2×2 per channel, FIR windows of at most a few hundred taps): a multi-threaded BLAS
 only adds hand-off overhead, and on a busy 2-core machine OpenBLAS's spinning threads made one N=160 gain 100×
@@ -6,6 +7,12 @@ slower. The limit holds only while a filter runs (:func:`limited_blas` wraps the
 ``run_from`` of every back end), so importing bboxtune leaves the process's thread settings as they were. A
 process that already runs its BLAS libraries with at most that many threads (``threadpoolctl.threadpool_limits(1)``
 once at its start) pays nothing per call; otherwise each call sets and restores the count (tens of µs).
+
+A kernel whose work is independent per channel group (the window-KF scan of OFIR / OUFIR / Kwon's FIR) runs on
+consecutive slices of its groups in Python threads (:func:`in_threads`): it releases the GIL, writes disjoint
+rows and computes every group as in one thread, so the result is bit for bit the same for any thread count. Plain
+threads, not numba's ``parallel=True``: its OpenMP layer (GNU libgomp) terminates a forked child that starts a
+parallel region, and its workqueue layer aborts when two threads call parallel kernels at once.
 """
 
 from __future__ import annotations
@@ -13,13 +20,16 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache, wraps
 from typing import ParamSpec, TypeVar
 
 from threadpoolctl import ThreadpoolController
 
 ENV_VAR = "BBOXTUNE_BLAS_THREADS"
+KERNEL_ENV_VAR = "BBOXTUNE_KERNEL_THREADS"
 MAX_THREADS = 1024
+MIN_WORK = 1 << 16  # work units (e.g. channel-group frames, ~0.1–0.3 µs each) per thread, at least
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -27,11 +37,34 @@ R = TypeVar("R")
 
 def blas_threads() -> int:
     """The BLAS thread count for the filters: ``$BBOXTUNE_BLAS_THREADS`` (an integer in [1, 1024]), default 1."""
-    text = os.environ.get(ENV_VAR, "1")
+    return _count(ENV_VAR, "1", "BLAS threads while a filter runs")
+
+
+def kernel_threads() -> int:
+    """Threads for the kernels that split their work (:func:`in_threads`): ``$BBOXTUNE_KERNEL_THREADS`` (an integer in
+    [1, 1024]), default the number of CPUs this process may run on."""
+    return _count(KERNEL_ENV_VAR, str(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                                      else os.cpu_count() or 1), "threads of the filters' kernels")
+
+
+def _count(name: str, default: str, what: str) -> int:
+    text = os.environ.get(name, default)
     if not text.strip().isdigit() or not 1 <= int(text) <= MAX_THREADS:
-        raise ValueError(f"{ENV_VAR}={text!r}; allowed: an integer in [1, {MAX_THREADS}] (BLAS threads while a filter "
-                         "runs)")
+        raise ValueError(f"{name}={text!r}; allowed: an integer in [1, {MAX_THREADS}] ({what})")
     return int(text)
+
+
+def in_threads(fn: Callable[[slice], R], n_items: int, work_per_item: int) -> list[R]:
+    """``fn`` on consecutive slices of ``n_items`` items, one slice per thread — :func:`kernel_threads` threads, fewer
+    when the work (``n_items × work_per_item`` units) leaves less than :data:`MIN_WORK` per thread; one slice
+    (``fn`` called here) for small calls. ``fn`` must release the GIL and write disjoint outputs. Results in slice
+    order."""
+    n = min(kernel_threads(), n_items, n_items * work_per_item // MIN_WORK)
+    if n <= 1:
+        return [fn(slice(0, n_items))]
+    bounds = [i * n_items // n for i in range(n + 1)]
+    with ThreadPoolExecutor(n) as pool:
+        return list(pool.map(fn, [slice(bounds[i], bounds[i + 1]) for i in range(n)]))
 
 
 @lru_cache(maxsize=1)

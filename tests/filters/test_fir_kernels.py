@@ -4,7 +4,7 @@ frames isolated (5 %) or in runs (40–60 %)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 import numpy as np
@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bboxtune import filters
-from bboxtune.filters import jit
+from bboxtune.filters import jit, threads, window_scan_kernels
 from bboxtune.filters.ufir import ufir_iterative
 
 TAU = 1 / 30
@@ -120,3 +120,52 @@ def test_window_kf_scan_equals_the_reference(shape: tuple[int, int, int, str], n
     assert_matches(*both(name, y, **params), y)
     fast, ref = both(name, y, positions=True, **params)
     assert_matches(fast, ref, y)
+
+
+@pytest.mark.parametrize("name", ["oufir", "ofir", "fir"])
+def test_window_kf_scan_in_threads_equals_one_thread_bit_for_bit(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The scan split over 3 threads (threads.in_threads, forced by a small MIN_WORK) gives the one-thread result
+    exactly and the reference to RTOL, on a batch mixing clean tracks (FFT kernel + scanned start-up) and gappy ones
+    (every frame scanned), with per-track horizons."""
+    y = tracks(11, 9, 150, "isolated")
+    y[[2, 5]] = tracks(12, 2, 150, "none")
+    params = {"horizon": np.array([4, 30, 30, 61, 8, 30, 30, 2, 200]), "sigma_w": 40.0, "sigma_v": 3.0}
+    flt = filters.make(name, filters.constant_velocity(TAU, ndim=4), **params)
+    slices: list[int] = []
+    split = threads.in_threads
+
+    def counted(fn: Callable[[slice], int], n: int, work: int) -> list[int]:
+        out = split(fn, n, work)
+        slices.append(len(out))
+        return out
+
+    monkeypatch.setattr(window_scan_kernels, "in_threads", counted)
+    monkeypatch.setattr(threads, "MIN_WORK", 1)
+    monkeypatch.setenv(threads.KERNEL_ENV_VAR, "3")
+    with kernels(True):
+        many = flt.run(y)
+    monkeypatch.setenv(threads.KERNEL_ENV_VAR, "1")
+    with kernels(True):
+        one = flt.run(y)
+    with kernels(False):
+        ref = flt.run(y)
+    assert slices[0] == 3 and slices[-1] == 1  # split over 3 threads, then run in one
+    np.testing.assert_array_equal(many, one)
+    assert_matches(many, ref, y)
+
+
+def test_a_failed_scan_estimate_is_reported_not_replaced(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A window of >= 2 valid samples whose scan estimate is NaN (counted by the kernel) raises FloatingPointError
+    instead of taking the unobservable windows' fallback."""
+    scan = window_scan_kernels.window_kf_scan
+
+    def failing(*args: object) -> int:
+        scan(*args)
+        X = args[-1]
+        X[0, -1] = np.nan  # type: ignore[index]
+        return 1
+
+    monkeypatch.setattr(window_scan_kernels, "window_kf_scan", failing)
+    y = tracks(1, 2, 40, "isolated")
+    with kernels(True), pytest.raises(FloatingPointError, match="no finite estimate for channel 0 at frame 39"):
+        filters.make("oufir", filters.constant_velocity(TAU, ndim=4), horizon=10).run(y)

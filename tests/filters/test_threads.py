@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import threading
 
 import numpy as np
 import pytest
@@ -67,3 +68,25 @@ def test_a_process_already_at_the_count_changes_nothing(monkeypatch: pytest.Monk
         controller = threads._controller()
         monkeypatch.setattr(type(controller), "limit", lambda *a, **k: pytest.fail("limit() called on the fast path"))
         assert flt.run(np.zeros((5, 1))).shape == (5, 2)
+
+
+def test_in_threads_runs_consecutive_slices_in_order(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Enough work: one slice per thread (at most $BBOXTUNE_KERNEL_THREADS), results in slice order; little work
+    (below MIN_WORK per thread): one slice, called in the caller's thread."""
+    monkeypatch.setattr(threads, "MIN_WORK", 10)
+    monkeypatch.setenv(threads.KERNEL_ENV_VAR, "3")
+    part = lambda s: (s.start, s.stop, threading.get_ident())  # noqa: E731
+    split = threads.in_threads(part, 10, 5)
+    assert [s[:2] for s in split] == [(0, 3), (3, 6), (6, 10)]
+    assert threading.get_ident() not in {s[2] for s in split}
+    assert [s[:2] for s in threads.in_threads(part, 10, 2)] == [(0, 5), (5, 10)]  # 20 units: 2 threads of 10
+    assert threads.in_threads(part, 10, 1) == [(0, 10, threading.get_ident())]  # 10 units: one thread
+    monkeypatch.setenv(threads.KERNEL_ENV_VAR, "1")
+    assert threads.in_threads(part, 10, 100) == [(0, 10, threading.get_ident())]
+
+
+@pytest.mark.parametrize("text", ["0", "-1", "two", "", "1025"])
+def test_a_bad_kernel_thread_count_is_refused_naming_the_variable(text: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(threads.KERNEL_ENV_VAR, text)
+    with pytest.raises(ValueError, match=f"{threads.KERNEL_ENV_VAR}=.*allowed: an integer in \\[1, 1024\\]"):
+        threads.kernel_threads()
