@@ -306,9 +306,10 @@ class FilterTuneEnv(TrackEnv):
         out: list[tuple[Episode, dict[str, Any], np.ndarray]] = [None] * len(episodes)  # type: ignore[list-item]
         scores_of = {k: v.tolist() for k, v in scores.items()}  # Python floats, converted once for all episodes
         reference_of = {k: v.tolist() for k, v in reference.items()}
-        lengths = np.array([len(ep.y) for ep in episodes])
-        for T in np.unique(lengths):  # the features of equal-length tracks in one call
-            rows = np.flatnonzero(lengths == T)
+        lengths: dict[int, list[int]] = {}  # the episodes of each length, in order
+        for r, ep in enumerate(episodes):
+            lengths.setdefault(len(ep.y), []).append(r)
+        for _, rows in sorted(lengths.items()):  # the features of equal-length tracks in one call
             nominal = [episodes[r].nominal for r in rows]
             obs = measurement_features(np.stack([episodes[r].y for r in rows]), [episodes[r].tau for r in rows],
                                        [n.sigma_v for n in nominal], [n.sigma_w for n in nominal],

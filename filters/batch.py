@@ -50,12 +50,13 @@ def track_positions(name: str, ys: Sequence[np.ndarray], taus: Sequence[float],
     track alone."""
     cls = filter_class(name)
     taus_run, used = _run_intervals(cls, np.asarray(taus, dtype=float), params)
-    lengths = np.array([len(y) for y in ys])
+    groups: dict[tuple[int, float], list[int]] = {}  # the tracks of each (length, interval), in track order
+    for r, key in enumerate(zip([len(y) for y in ys], taus_run.tolist(), strict=True)):
+        groups.setdefault(key, []).append(r)
     out: list[np.ndarray] = [np.empty(0)] * len(ys)
-    for T, tau in sorted(set(zip(lengths.tolist(), taus_run.tolist(), strict=False))):
-        rows = np.flatnonzero((lengths == T) & (taus_run == tau))
+    for (_, tau), rows in sorted(groups.items()):
         flt = cls(constant_velocity(tau, ndim=ys[rows[0]].shape[-1]), **{k: v[rows] for k, v in used.items()})
-        est = flt.positions(np.stack([ys[r] for r in rows.tolist()]))
+        est = flt.positions(np.stack([ys[r] for r in rows]))
         for i, r in enumerate(rows):
             out[r] = est[i]
     return out

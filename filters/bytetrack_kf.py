@@ -42,6 +42,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from bboxtune.filters import box_kf_kernels, jit
 from bboxtune.filters.base import CHUNK_SAMPLES, Carry, Filter, not_started
 from bboxtune.filters.blocks import block_diagonal, coordinate_blocks
 from bboxtune.filters.model import StateSpaceModel, check_model
@@ -94,6 +95,11 @@ class _Variance:
         self.slope, self.offset = (np.broadcast_to(a, shape) for a in pair)
         self.fixed = None if self.slope.any() else np.square(self.offset)
 
+    @property
+    def pair(self) -> tuple[np.ndarray, np.ndarray]:
+        """(slope, offset), each of the full shape."""
+        return self.slope, self.offset
+
     def at(self, h: np.ndarray, rows: slice | np.ndarray = slice(None)) -> np.ndarray:
         """At heights h (n,) (or of the tracks ``rows`` only)."""
         if self.fixed is not None:
@@ -114,6 +120,8 @@ class BoxKF(Filter):
 
     IN_FRAMES: ClassVar[bool] = True
     FIXED: ClassVar[tuple[int, ...]] = ()  # coordinates without a rate (SORT's aspect): rate and its variance 0
+    # the recursion runs in bboxtune.filters.box_kf_kernels (unless $BBOXTUNE_JIT=0): only without a _before_predict hook
+    COMPILED: ClassVar[bool] = False
 
     def __init__(self, model: StateSpaceModel, **params: Any) -> None:
         if check_model(model).M != M:
@@ -195,8 +203,13 @@ class BoxKF(Filter):
         gated = ~detected.all(axis=1)
         waiting = np.isnan(X[_P, 0]) & detected.any(axis=0)
         first = detected.argmax(axis=0)
-        starts = {int(t): np.flatnonzero(waiting & (first == t)) for t in np.unique(first[waiting])}
         means = np.empty((T, 1 if positions_only else 2, M, n))
+        if self.COMPILED and jit.enabled():
+            pairs = [np.stack(v.pair) for v in (P_start, Q, R)]
+            box_kf_kernels.run_boxes(z, detected, np.where(waiting, first, -1), *pairs,
+                                     np.array([v.fixed is not None for v in (P_start, Q, R)]), X, means)
+            return means
+        starts = {int(t): np.flatnonzero(waiting & (first == t)) for t in np.unique(first[waiting])}
         for t in range(T):
             self.predict_state(X, Q)
             update_state(X, z[t], R, gate[t] if gated[t] else None)
@@ -292,6 +305,7 @@ class ByteTrackKF(BoxKF):
     DEFAULTS: ClassVar[dict[str, Any]] = {"std_weight_position": 1 / 20, "std_weight_velocity": 1 / 160,
                                           "std_aspect": 1e-2, "std_aspect_rate": 1e-5, "std_aspect_measurement": 1e-1}
     PER_TRACK: ClassVar[tuple[str, ...]] = tuple(DEFAULTS)
+    COMPILED: ClassVar[bool] = True
 
     def _noise(self, params: dict[str, np.ndarray]) -> HeightNoise:
         def column(name: str, mask: np.ndarray) -> np.ndarray:  # (4, n): the parameter on the coordinates of mask

@@ -7,7 +7,8 @@ For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks)
 1. steps/s through the public API: ``env.reset(); env.step(action)`` on ``gym.make``'s wrapped env (one
    step per episode, so every step includes drawing, simulating and summarising a new track and the
    fixed-rule run it is compared with — prepared in blocks, see ``bboxtune.envs.tune_env``) — target >= 1,000 steps/s;
-   and, as a ratio to it, ``env.reset(seed=i); env.step(action)`` (a reseed prepares one episode, not a block);
+   and, as a ratio to it, ``env.reset(seed=i); env.step(action)`` (a reseed prepares one episode, not a block; the
+   timed blocks of [1] and [1b] alternate, so a change of load hits both);
 2. episodes/s through the batched scoring path ``env.unwrapped.score(actions)`` with ``--candidates``
    distinct actions per call (each candidate is one filtered and scored episode) — target >= 5,000;
 3. the cost of a step in runs of the filter alone (one candidate, gains cached), from the same run, as a ratio;
@@ -55,6 +56,18 @@ def rates(count: int, fn, repeat: int) -> tuple[float, float]:
     return count / min(seconds), count / float(np.median(seconds))
 
 
+def alternating_rates(count: int, fns: list, repeat: int) -> list[tuple[float, float]]:
+    """:func:`rates` of each of ``fns``, their timed blocks alternating (r = 0: each fn once, then r = 1, …), so that
+    a change of the shared machine's load between blocks hits all of them alike and their ratio stays fair."""
+    seconds: list[list[float]] = [[] for _ in fns]
+    for r in range(repeat):
+        for fn, times in zip(fns, seconds, strict=True):
+            t0 = time.perf_counter()
+            fn(r)
+            times.append(time.perf_counter() - t0)
+    return [(count / min(times), count / float(np.median(times))) for times in seconds]
+
+
 @command
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(prog="bench_env.py", description=__doc__.split("\n\n")[0])
@@ -88,10 +101,10 @@ def main(argv: list[str] | None = None) -> int:
             env.reset(seed=r * args.episodes + i)
             env.step(a)
 
-    step_rate, step_median = rates(args.episodes, steps, args.repeat)
+    (step_rate, step_median), (seeded_rate, seeded_median) = alternating_rates(args.episodes, [steps, seeded_steps],
+                                                                               args.repeat)
     print(f"{args.backend}, {args.track_length}-frame box tracks, sim source; best (median) of {args.repeat} timed blocks")
     print(f"[1] gym.make + reset + step: {step_rate:,.0f} ({step_median:,.0f}) steps/s (target >= 1,000)")
-    seeded_rate, seeded_median = rates(args.episodes, seeded_steps, args.repeat)
     print(f"[1b] reset(seed=i) + step (a Gymnasium evaluation loop): {seeded_rate:,.0f} ({seeded_median:,.0f}) steps/s, "
           f"{step_rate / seeded_rate:.2f}x the time of reset() + step (target <= 1.5x)")
 

@@ -239,9 +239,9 @@ def assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndar
     if not jit.enabled():
         return assemble_numpy(p0, v0, w, tau, delta, cmn, sizes0, bounds)
     B, T, C = w.shape[0], w.shape[1] + 1, w.shape[2]
-    per_track = lambda x: np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=float).reshape(-1), (B,)))  # noqa: E731
+    per_track = lambda x: _rows(np.asarray(x, dtype=float).reshape(-1), B)  # noqa: E731
     if sizes0.size:
-        sizes0, bounds = np.broadcast_to(sizes0.reshape(-1, 2), (B, 2)), np.broadcast_to(bounds.reshape(-1, 2), (B, 2))
+        sizes0, bounds = _rows(sizes0.reshape(-1, 2), B), _rows(bounds.reshape(-1, 2), B)
         low, high = np.log(bounds[:, :1] / sizes0), np.log(bounds[:, 1:] / sizes0)  # bounds of ℓ
     else:
         low = high = sizes0 = np.empty((B, 0))
@@ -251,6 +251,11 @@ def assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndar
     growth = np.exp(state[..., 2:4]) if sizes0.size else np.empty((B, T, 0))  # w = w_0 exp(ℓ)
     truth, y = simulate_kernels.measure(state, growth, np.ascontiguousarray(sizes0), np.ascontiguousarray(cmn, dtype=float))
     return truth, state, y
+
+
+def _rows(a: np.ndarray, B: int) -> np.ndarray:
+    """``a`` (1, …) or (B, …) as a C-contiguous array of B rows (the one row repeated, or ``a`` itself)."""
+    return np.ascontiguousarray(a if len(a) == B else np.broadcast_to(a, (B, *a.shape[1:])))
 
 
 def assemble_numpy(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray, delta: float | np.ndarray,

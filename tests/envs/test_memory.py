@@ -14,7 +14,7 @@ import pytest
 from bboxtune import envs
 from bboxtune.envs.data import memory
 from bboxtune.envs.data.memory import GIB, MemoryLimitError, check_fits
-from bboxtune.envs.episodes.scoring import CANDIDATE_FRAME_BYTES_OTHER, candidate_frame_bytes
+from bboxtune.envs.episodes.scoring import CANDIDATE_FRAME_BYTES_OTHER, SMALL_SCORING_BYTES, candidate_frame_bytes
 from bboxtune.envs.vector import TUNE_ID, TuneBatch, batch_bytes
 
 T = 50  # frames of the small episodes below
@@ -70,15 +70,21 @@ def test_make_vec_of_ten_million_envs_is_refused_before_allocating():
     assert peak < 100 * 2**20  # the env's construction only, no episode
 
 
+def edge_candidates(frames: int, per_frame: int) -> int:
+    """The fewest candidates whose scoring estimate on ``frames`` frames exceeds SMALL_SCORING_BYTES (so it is checked)."""
+    return SMALL_SCORING_BYTES // (frames * per_frame) + 1
+
+
 @pytest.mark.parametrize("backend", ["ufir_cmn", "kf_cmn", "ukf"])
 def test_score_refuses_candidates_beyond_memory_at_the_edge(backend, monkeypatch):
     env = gym.make(TUNE_ID, backend=backend, track_length=T).unwrapped
     env.reset(seed=0)
     d = env.action_map.dim
-    pin_available(monkeypatch, 3 * T * candidate_frame_bytes(backend))
-    assert env.score(np.zeros((3, d)))["reward"].shape == (3,)
-    with pytest.raises(MemoryLimitError, match=rf"^actions: 4 candidates × {T} frames needs ~"):
-        env.score(np.zeros((4, d)))
+    n = edge_candidates(T, candidate_frame_bytes(backend))
+    pin_available(monkeypatch, n * T * candidate_frame_bytes(backend))
+    assert env.score(np.zeros((n, d)))["reward"].shape == (n,)
+    with pytest.raises(MemoryLimitError, match=rf"^actions: {n + 1} candidates × {T} frames needs ~"):
+        env.score(np.zeros((n + 1, d)))
 
 
 def test_score_of_a_million_actions_is_refused():
@@ -88,15 +94,30 @@ def test_score_of_a_million_actions_is_refused():
         env.score(np.zeros((10**6, 2)))
 
 
+def test_a_small_scoring_reads_no_memory_figure(monkeypatch):
+    """At most SMALL_SCORING_BYTES (a step's one candidate) is accepted without reading the available memory; one
+    candidate more is checked against it."""
+    env = gym.make(TUNE_ID, backend="ufir_cmn", track_length=T).unwrapped
+    env.reset(seed=0)
+    n = edge_candidates(T, CANDIDATE_FRAME_BYTES_OTHER) - 1
+    monkeypatch.setattr(memory, "available_bytes", lambda: pytest.fail("available_bytes read for a small scoring"))
+    assert env.score(np.zeros((n, 2)))["reward"].shape == (n,)
+    env.step(np.zeros(2, np.float32))
+    pin_available(monkeypatch, 0)
+    with pytest.raises(MemoryLimitError, match=rf"^actions: {n + 1} candidates × {T} frames needs ~"):
+        env.score(np.zeros((n + 1, 2)))
+
+
 @pytest.mark.parametrize("name", ["score_rest", "score"])
 def test_retune_scores_refuse_candidates_beyond_memory(name, monkeypatch):
     env = gym.make("bboxtune/FilterRetune-v0", backend="ufir_cmn", track_length=200).unwrapped
     env.reset(seed=0)
     frames = 200 - env.config.window if name == "score_rest" else env.config.window  # from the first window on
-    pin_available(monkeypatch, 3 * frames * CANDIDATE_FRAME_BYTES_OTHER)
-    getattr(env, name)(np.zeros((3, 2)))
-    with pytest.raises(MemoryLimitError, match=rf"^actions: 4 candidates × {frames} frames"):
-        getattr(env, name)(np.zeros((4, 2)))
+    n = edge_candidates(frames, CANDIDATE_FRAME_BYTES_OTHER)
+    pin_available(monkeypatch, n * frames * CANDIDATE_FRAME_BYTES_OTHER)
+    getattr(env, name)(np.zeros((n, 2)))
+    with pytest.raises(MemoryLimitError, match=rf"^actions: {n + 1} candidates × {frames} frames"):
+        getattr(env, name)(np.zeros((n + 1, 2)))
 
 
 def traced_peak(run) -> int:

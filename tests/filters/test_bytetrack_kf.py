@@ -1,15 +1,19 @@
 """bboxtune.filters.bytetrack_kf: ByteTrack's / DeepSORT's box Kalman filter, batched, against a per-frame reference written
-from the published equations (initiate / predict / update with 8×8 matrices and Cholesky solves, as the original)."""
+from the published equations (initiate / predict / update with 8×8 matrices and Cholesky solves, as the original); its
+compiled recursion (bboxtune.filters.box_kf_kernels) against the numpy one, bit for bit."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import scipy.linalg
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bboxtune import filters
 from bboxtune.filters.base import Carry
 from bboxtune.filters.bytetrack_kf import STD_RANGE
+from tests.kernel_modes import both
 
 TAU = 1 / 30
 PARAMS = ("std_weight_position", "std_weight_velocity", "std_aspect", "std_aspect_rate", "std_aspect_measurement")
@@ -100,6 +104,28 @@ def test_matches_the_reference_on_random_tracks_with_missing_frames_and_per_trac
     states = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4), **params).run(y)
     assert states.shape == (12, 80, 8)
     assert_matches_reference(y, states, params)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 5), st.integers(0, 60), st.floats(0.0, 0.9), st.booleans(),
+       st.integers(0, 60))
+def test_the_compiled_recursion_equals_the_numpy_one_bit_for_bit(seed: int, B: int, T: int, missing: float,
+                                                                 tuned: bool, split: int) -> None:
+    """Runs, positions and a run continued from a carry (late starts, gaps, tracks never detected; the published or
+    random per-track weights): the kernel and the reference give the same bits (the env's episodes and rewards do
+    not depend on ``$BBOXTUNE_JIT``)."""
+    y = boxes(B, T, seed, missing)
+    flt = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4), **(random_params(B, seed) if tuned else {}))
+    cut = min(split, T)
+
+    def runs() -> list[np.ndarray]:
+        first, carry = flt.run_from(y[:, :cut])
+        rest, end = flt.run_from(y[:, cut:], carry)
+        return [flt.run(y), flt.positions(y), first, rest, end.x, end.P]
+
+    kernel, reference = both(runs)
+    for got, want in zip(kernel, reference, strict=True):
+        np.testing.assert_array_equal(got, want)
 
 
 def test_defaults_are_the_published_weights_and_match_the_reference() -> None:

@@ -1,0 +1,67 @@
+"""The compiled recursion of the box Kalman filters without a predict hook (:class:`bboxtune.filters.bytetrack_kf.ByteTrackKF`).
+
+:func:`run_boxes` is :meth:`bboxtune.filters.bytetrack_kf.BoxKF._run_boxes` (its numpy reference, vectorised over
+tracks with a loop over frames) as one loop over frames, tracks and coordinates: the same closed-form 2-state
+predict / update / initiate, in the same order of floating-point operations, so the means come out bit for bit equal
+(tests/filters/test_bytetrack_kf.py). A track's state X[:, c, j] is [p, v, P01, P00, P11] (v per frame).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bboxtune.filters import jit
+
+
+@jit.kernel
+def _variance(slope: float, offset: float, fixed: bool, h: float) -> float:
+    """(slope · h + offset)², or offset² when the noise does not depend on h (the reference's ``_Variance.fixed``)."""
+    s = offset if fixed else slope * h + offset
+    return s * s
+
+
+@jit.kernel
+def run_boxes(z: np.ndarray, detected: np.ndarray, first: np.ndarray, start: np.ndarray, process: np.ndarray,
+              measurement: np.ndarray, fixed: np.ndarray, X: np.ndarray, means: np.ndarray) -> None:
+    """The recursion on measured coordinates ``z`` (T, 4, n) (0 where not ``detected`` (T, n)) from state ``X``
+    (5, 4, n), updated in place to the state after the last frame; ``first`` (n,): the frame a waiting track starts
+    at (-1: none); the noise as (slope, offset) pairs ``start``, ``process`` (2, 2, 4, n) (pair, then coordinate or
+    rate) and ``measurement`` (2, 4, n); ``fixed`` (3,): whether start / process / measurement noise ignores the
+    height. Writes the means (T, k, 4, n), k = 1 ([p]) or 2 ([p, v])."""
+    T, M, n = z.shape
+    k = means.shape[1]
+    for t in range(T):
+        for j in range(n):
+            h = X[0, 3, j]  # the current mean height (process noise)
+            for c in range(M):
+                q_p = _variance(process[0, 0, c, j], process[1, 0, c, j], fixed[1], h)
+                q_v = _variance(process[0, 1, c, j], process[1, 1, c, j], fixed[1], h)
+                P00 = X[3, c, j] + X[2, c, j]
+                X[0, c, j] += X[1, c, j]
+                X[2, c, j] += X[4, c, j]
+                X[3, c, j] = P00 + X[2, c, j] + q_p
+                X[4, c, j] += q_v
+            h = X[0, 3, j]  # the predicted height (measurement noise)
+            gate = 1.0 if detected[t, j] else 0.0
+            for c in range(M):
+                r = _variance(measurement[0, c, j], measurement[1, c, j], fixed[2], h)
+                S = X[3, c, j] + r
+                K0 = X[2, c, j] / S * gate
+                K1 = X[3, c, j] / S * gate
+                innovation = z[t, c, j] - X[0, c, j]
+                X[0, c, j] += K1 * innovation
+                X[1, c, j] += K0 * innovation
+                X[4, c, j] -= K0 * X[2, c, j]
+                X[2, c, j] -= K1 * X[2, c, j]
+                X[3, c, j] -= K1 * X[3, c, j]
+            if first[j] == t:  # initiate: mean [m, 0], P₀ from the detection's height
+                h = z[t, 3, j]
+                for c in range(M):
+                    X[0, c, j] = z[t, c, j]
+                    X[1, c, j] = 0.0
+                    X[2, c, j] = 0.0
+                    X[3, c, j] = _variance(start[0, 0, c, j], start[1, 0, c, j], fixed[0], h)
+                    X[4, c, j] = _variance(start[0, 1, c, j], start[1, 1, c, j], fixed[0], h)
+            for i in range(k):
+                for c in range(M):
+                    means[t, i, c, j] = X[i, c, j]
