@@ -36,7 +36,7 @@ import numpy as np
 
 from bboxtune import filters
 from bboxtune.agents.tracking.retune import TrackHistories, check_count
-from bboxtune.agents.tracking.search_kernels import AREA, prior_means
+from bboxtune.agents.tracking.search_kernels import AREA, LONGEST, choose_candidates, prior_means
 from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.envs.data.metrics import iou
 from bboxtune.filters import jit
@@ -160,7 +160,10 @@ def candidate_scores(kf: ScaledSortKF, y: np.ndarray, candidates: Mapping[str, n
 
 class CausalSearch(TrackHistories):
     """Re-tunes the live tracks of a tracker (frame interval ``tau`` s) by the search of the module docstring with
-    ``settings``; the tracker's filter bank must run :data:`BACKEND`."""
+    ``settings``; the tracker's filter bank must run :data:`BACKEND`. With the compiled kernels the whole choice
+    runs in :func:`bboxtune.agents.tracking.search_kernels.choose_candidates` (histories up to
+    :data:`~bboxtune.agents.tracking.search_kernels.LONGEST` frames); otherwise in numpy (:func:`candidate_scores`),
+    with the same result."""
 
     def __init__(self, tau: float, settings: SearchSettings | None = None) -> None:
         self.settings = settings or SearchSettings()
@@ -169,6 +172,11 @@ class CausalSearch(TrackHistories):
         self.candidates = candidate_grid(self.settings.width, self.settings.steps)
         self.stock = int(np.flatnonzero(np.all([self.candidates[k] == v for k, v in STOCK.items()], axis=0))[0])
         self._frames = 0
+        n_candidates = self.settings.steps ** 2
+        noise = self.kf._noise(self.candidates)  # the candidates' fixed variances, built once
+        self._variances = tuple(np.ascontiguousarray(_Variance(pair, shape).fixed) for pair, shape in (
+            (noise.start, (2, M, n_candidates)), (noise.process, (2, M, n_candidates)),
+            (noise.measurement, (M, n_candidates))))
 
     def observe(self, measured: np.ndarray) -> None:
         super().observe(measured)
@@ -182,11 +190,24 @@ class CausalSearch(TrackHistories):
         if not len(due):
             return
         seen = self.y[due, -min(int(self.age[due].max()), self.history):]
+        if jit.enabled() and seen.shape[1] <= LONGEST:
+            Y = xywh_to_cxcywh(seen)
+            check_boxes(Y)
+            z = np.ascontiguousarray(self.kf._measure(Y.transpose(0, 2, 1)).transpose(0, 2, 1))
+            s = self.settings
+            choice = choose_candidates(z, np.ascontiguousarray(seen), *self._variances, AREA, float(s.cap),
+                                       float(s.margin), self.stock, s.min_scored)
+        else:
+            choice = self._reference_choice(seen)
+        bank.set_params(due, {name: values[choice] for name, values in self.candidates.items()})
+        self.calls += len(due)
+
+    def _reference_choice(self, seen: np.ndarray) -> np.ndarray:
+        """The chosen candidate (n,) of each history ``seen`` (n, T, 4) xywh, in numpy (module docstring)."""
         scores, counts = candidate_scores(self.kf, seen, self.candidates, self.settings.cap)
         penalty = np.full(scores.shape[1], self.settings.margin)
         penalty[self.stock] = 0.0
         adjusted = np.nan_to_num(scores, nan=-1.0) - penalty
         choice = np.argmax(adjusted, axis=1)
         choice[(adjusted[:, self.stock] >= adjusted.max(axis=1)) | (counts < self.settings.min_scored)] = self.stock
-        bank.set_params(due, {name: values[choice] for name, values in self.candidates.items()})
-        self.calls += len(due)
+        return choice
