@@ -99,14 +99,13 @@ def prior_means(z: np.ndarray, P_start: np.ndarray, Q: np.ndarray, R: np.ndarray
 
 
 @jit.kernel(inline=True)
-def _capped_iou(p: np.ndarray, box: np.ndarray, cap: float) -> float:
-    """min(IoU, ``cap``) of SORT's predicted state p = (u, v, s, r) with the xywh box ``box``, 0 where the predicted
+def _capped_iou(u: float, v: float, s: float, r: float, box: np.ndarray, cap: float) -> float:
+    """min(IoU, ``cap``) of SORT's predicted state (u, v, s, r) with the xywh box ``box``, 0 where the predicted
     box is NaN: :func:`bboxtune.envs.data.metrics.iou` of the box ``SortKF._to_boxes`` and ``cxcywh_to_xywh``
-    make of p, operation for operation."""
-    s = p[2]
-    w = np.sqrt(s * p[3])
+    make of the state, operation for operation."""
+    w = np.sqrt(s * r)
     h = s / w
-    xa, ya = p[0] - 0.5 * w, p[1] - 0.5 * h
+    xa, ya = u - 0.5 * w, v - 0.5 * h
     if np.isnan(xa) or np.isnan(ya) or np.isnan(w) or np.isnan(h):
         return 0.0
     wa, ha = max(w, 0.0), max(h, 0.0)
@@ -128,13 +127,19 @@ def _pairwise_sum(a: np.ndarray) -> float:
         for i in range(n):
             total += a[i]
         return total
-    r = a[:_BLOCK].copy()
+    r0, r1, r2, r3, r4, r5, r6, r7 = a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]
     i = _BLOCK
     while i < n - n % _BLOCK:
-        for k in range(_BLOCK):
-            r[k] += a[i + k]
+        r0 += a[i]
+        r1 += a[i + 1]
+        r2 += a[i + 2]
+        r3 += a[i + 3]
+        r4 += a[i + 4]
+        r5 += a[i + 5]
+        r6 += a[i + 6]
+        r7 += a[i + 7]
         i += _BLOCK
-    total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
     while i < n:
         total += a[i]
         i += 1
@@ -145,36 +150,62 @@ def _pairwise_sum(a: np.ndarray) -> float:
 def choose_candidates(z: np.ndarray, y: np.ndarray, P_start: np.ndarray, Q: np.ndarray, R: np.ndarray, guard: int,
                       cap: float, margin: float, stock: int, min_scored: int) -> np.ndarray:
     """The chosen candidate (n,) int64 of each of n tracks: measured coordinates ``z`` (n, T, 4) and their xywh
-    boxes ``y`` (n, T, 4) (NaN rows: no detection; T <= 128), candidate c with the fixed variances
+    boxes ``y`` (n, T, 4) (NaN rows: no detection; T <= :data:`LONGEST`), candidate c with the fixed variances
     ``P_start[:, :, c]``, ``Q[:, :, c]`` (2, 4, C) and ``R[:, c]`` (4, C). A candidate's score: the mean over the
     scored frames of min(prediction IoU, ``cap``) (-1 without one), less ``margin`` unless c is ``stock``; the
     best score wins, ties and tracks with fewer than ``min_scored`` scored frames go to ``stock``. ``guard``: as
-    :func:`prior_means`. All float64, C-contiguous."""
+    :func:`prior_means`. All float64, C-contiguous.
+
+    A track's C candidates run in lockstep (they share its detections, so its branches): the inner loops run over
+    the candidates, independent columns the compiler vectorizes; each column's operations are :func:`prior_means`'."""
     n, T, m = z.shape
     n_candidates = Q.shape[2]
     choice = np.full(n, stock, dtype=np.int64)
-    overlap = np.zeros(T)
+    overlap = np.zeros((n_candidates, T))
     score = np.empty(n_candidates)
-    p, v = np.empty(m), np.empty(m)
-    P00, P01, P11 = np.empty(m), np.empty(m), np.empty(m)
+    p, v = np.empty((m, n_candidates)), np.empty((m, n_candidates))
+    P00, P01, P11 = np.empty((m, n_candidates)), np.empty((m, n_candidates)), np.empty((m, n_candidates))
     for i in range(n):
+        began = False
         count = 0
+        overlap[:] = 0.0
+        for t in range(T):
+            detected = not np.isnan(z[i, t, 0])
+            if began:
+                if 0 <= guard < m:
+                    for c in range(n_candidates):
+                        v[guard, c] *= 0.0 if p[guard, c] + v[guard, c] <= 0 else 1.0
+                for k in range(m):
+                    for c in range(n_candidates):
+                        P00[k, c] += P01[k, c]
+                        p[k, c] += v[k, c]
+                        P01[k, c] += P11[k, c]
+                        P00[k, c] += P01[k, c]
+                        P00[k, c] += Q[0, k, c]
+                        P11[k, c] += Q[1, k, c]
+                if detected:
+                    count += 1
+                    for c in range(n_candidates):
+                        overlap[c, t] = _capped_iou(p[0, c], p[1, c], p[2, c], p[3, c], y[i, t], cap)
+                    for k in range(m):
+                        measured = z[i, t, k]
+                        for c in range(n_candidates):
+                            S = P00[k, c] + R[k, c]
+                            K1, K0 = P01[k, c] / S, P00[k, c] / S
+                            innovation = measured - p[k, c]
+                            p[k, c] += K0 * innovation
+                            v[k, c] += K1 * innovation
+                            P11[k, c] -= K1 * P01[k, c]
+                            P01[k, c] -= K0 * P01[k, c]
+                            P00[k, c] -= K0 * P00[k, c]
+            elif detected:
+                for k in range(m):
+                    for c in range(n_candidates):
+                        p[k, c], v[k, c], P01[k, c] = z[i, t, k], 0.0, 0.0
+                        P00[k, c], P11[k, c] = P_start[0, k, c], P_start[1, k, c]
+                began = True
         for c in range(n_candidates):
-            began = False
-            count = 0
-            for t in range(T):
-                overlap[t] = 0.0
-                detected = not np.isnan(z[i, t, 0])
-                if began:
-                    _predict(p, v, P00, P01, P11, Q, c, guard)
-                    if detected:
-                        overlap[t] = _capped_iou(p, y[i, t], cap)
-                        count += 1
-                        _update(p, v, P00, P01, P11, R, c, z[i, t])
-                elif detected:
-                    _initiate(p, v, P00, P01, P11, P_start, c, z[i, t])
-                    began = True
-            mean = _pairwise_sum(overlap) / count if count else -1.0
+            mean = _pairwise_sum(overlap[c]) / count if count else -1.0
             score[c] = mean if c == stock else mean - margin
         if count < min_scored:
             continue
