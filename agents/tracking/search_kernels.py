@@ -147,10 +147,11 @@ def _pairwise_sum(a: np.ndarray) -> float:
 
 
 @jit.kernel
-def choose_candidates(z: np.ndarray, y: np.ndarray, P_start: np.ndarray, Q: np.ndarray, R: np.ndarray, guard: int,
-                      cap: float, margin: float, stock: int, min_scored: int) -> np.ndarray:
-    """The chosen candidate (n,) int64 of each of n tracks: measured coordinates ``z`` (n, T, 4) and their xywh
-    boxes ``y`` (n, T, 4) (NaN rows: no detection; T <= :data:`LONGEST`), candidate c with the fixed variances
+def choose_candidates(y: np.ndarray, P_start: np.ndarray, Q: np.ndarray, R: np.ndarray, guard: int, cap: float,
+                      margin: float, stock: int, min_scored: int) -> np.ndarray:
+    """The chosen candidate (n,) int64 of each of n tracks of SORT's filter family: their detections ``y`` (n, T, 4)
+    xywh px (NaN rows: no detection; T <= :data:`LONGEST`), measured as SORT's (u, v, s, r) by the operations of
+    ``xywh_to_cxcywh`` and ``SortKF._measure``, candidate c with the fixed variances
     ``P_start[:, :, c]``, ``Q[:, :, c]`` (2, 4, C) and ``R[:, c]`` (4, C). A candidate's score: the mean over the
     scored frames of min(prediction IoU, ``cap``) (-1 without one), less ``margin`` unless c is ``stock``; the
     best score wins, ties and tracks with fewer than ``min_scored`` scored frames go to ``stock``. ``guard``: as
@@ -158,8 +159,9 @@ def choose_candidates(z: np.ndarray, y: np.ndarray, P_start: np.ndarray, Q: np.n
 
     A track's C candidates run in lockstep (they share its detections, so its branches): the inner loops run over
     the candidates, independent columns the compiler vectorizes; each column's operations are :func:`prior_means`'."""
-    n, T, m = z.shape
+    n, T, m = y.shape
     n_candidates = Q.shape[2]
+    z = np.empty((T, m))  # a track's measured coordinates
     choice = np.full(n, stock, dtype=np.int64)
     overlap = np.zeros((n_candidates, T))
     score = np.empty(n_candidates)
@@ -170,7 +172,10 @@ def choose_candidates(z: np.ndarray, y: np.ndarray, P_start: np.ndarray, Q: np.n
         count = 0
         overlap[:] = 0.0
         for t in range(T):
-            detected = not np.isnan(z[i, t, 0])
+            w, h = y[i, t, 2], y[i, t, 3]
+            z[t, 0], z[t, 1], z[t, 2], z[t, 3] = y[i, t, 0] + 0.5 * w, y[i, t, 1] + 0.5 * h, w * h, w / h
+        for t in range(T):
+            detected = not np.isnan(z[t, 0])
             if began:
                 if 0 <= guard < m:
                     for c in range(n_candidates):
@@ -188,7 +193,7 @@ def choose_candidates(z: np.ndarray, y: np.ndarray, P_start: np.ndarray, Q: np.n
                     for c in range(n_candidates):
                         overlap[c, t] = _capped_iou(p[0, c], p[1, c], p[2, c], p[3, c], y[i, t], cap)
                     for k in range(m):
-                        measured = z[i, t, k]
+                        measured = z[t, k]
                         for c in range(n_candidates):
                             S = P00[k, c] + R[k, c]
                             K1, K0 = P01[k, c] / S, P00[k, c] / S
@@ -201,7 +206,7 @@ def choose_candidates(z: np.ndarray, y: np.ndarray, P_start: np.ndarray, Q: np.n
             elif detected:
                 for k in range(m):
                     for c in range(n_candidates):
-                        p[k, c], v[k, c], P01[k, c] = z[i, t, k], 0.0, 0.0
+                        p[k, c], v[k, c], P01[k, c] = z[t, k], 0.0, 0.0
                         P00[k, c], P11[k, c] = P_start[0, k, c], P_start[1, k, c]
                 began = True
         for c in range(n_candidates):

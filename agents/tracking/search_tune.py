@@ -190,12 +190,9 @@ class CausalSearch(TrackHistories):
         if not len(due):
             return
         seen = self.y[due, -min(int(self.age[due].max()), self.history):]
-        if jit.enabled() and seen.shape[1] <= LONGEST:
-            Y = xywh_to_cxcywh(seen)
-            check_boxes(Y)
-            z = np.ascontiguousarray(self.kf._measure(Y.transpose(0, 2, 1)).transpose(0, 2, 1))
+        if jit.enabled() and seen.shape[1] <= LONGEST:  # the boxes were checked by the bank's update
             s = self.settings
-            choice = choose_candidates(z, np.ascontiguousarray(seen), *self._variances, AREA, float(s.cap),
+            choice = choose_candidates(np.ascontiguousarray(seen), *self._variances, AREA, float(s.cap),
                                        float(s.margin), self.stock, s.min_scored)
         else:
             choice = self._reference_choice(seen)
