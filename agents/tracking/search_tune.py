@@ -20,8 +20,10 @@ pair (k_v, k_r) with k = ``width`` ** u, u on ``steps`` points evenly spaced in 
   ties go to the stock one (with a cap below 1 many candidates reach the cap on every frame): shrinkage toward
   SORT's filter, which the tracker keeps unless the evidence for another is clear.
 
-All tracks due in a frame and all candidates run in one batched recursion ((tracks × candidates) columns over
-``history`` frames). Causal: a track's history holds its matched detections up to the current frame; never a
+All tracks due in a frame and all candidates run in one call: a compiled kernel that returns only each track's
+chosen candidate (:func:`bboxtune.agents.tracking.search_kernels.choose_candidates`), or, with ``$BBOXTUNE_JIT=0``,
+a batched numpy recursion ((tracks × candidates) columns over ``history`` frames) with the same result.
+Causal: a track's history holds its matched detections up to the current frame; never a
 future frame, never a ground truth. Tracks are re-tuned together on every ``window``-th frame of the sequence
 (those that have lived ``min_scored`` + 1 frames), so the search costs one call per ``window`` frames.
 """
