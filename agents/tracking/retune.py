@@ -55,6 +55,8 @@ class TrackHistories:
 
     def start(self, boxes: np.ndarray) -> None:
         """New tracks at their first detections ``boxes`` (k, 4) xywh (appended, as the filter bank's rows)."""
+        if not len(boxes):
+            return
         fresh = np.full((len(boxes), self.history, 4), np.nan)
         fresh[:, -1] = boxes
         self.y = np.concatenate([self.y, fresh])

@@ -20,8 +20,10 @@ pair (k_v, k_r) with k = ``width`` ** u, u on ``steps`` points evenly spaced in 
   ties go to the stock one (with a cap below 1 many candidates reach the cap on every frame): shrinkage toward
   SORT's filter, which the tracker keeps unless the evidence for another is clear.
 
-All tracks due in a frame and all candidates run in one batched recursion ((tracks × candidates) columns over
-``history`` frames). Causal: a track's history holds its matched detections up to the current frame; never a
+All tracks due in a frame and all candidates run in one call: a compiled kernel that returns only each track's
+chosen candidate (:func:`bboxtune.agents.tracking.search_kernels.choose_candidates`), or, with ``$BBOXTUNE_JIT=0``,
+a batched numpy recursion ((tracks × candidates) columns over ``history`` frames) with the same result.
+Causal: a track's history holds its matched detections up to the current frame; never a
 future frame, never a ground truth. Tracks are re-tuned together on every ``window``-th frame of the sequence
 (those that have lived ``min_scored`` + 1 frames), so the search costs one call per ``window`` frames.
 """
@@ -36,7 +38,7 @@ import numpy as np
 
 from bboxtune import filters
 from bboxtune.agents.tracking.retune import TrackHistories, check_count
-from bboxtune.agents.tracking.search_kernels import AREA, prior_means
+from bboxtune.agents.tracking.search_kernels import AREA, LONGEST, choose_candidates, prior_means
 from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.envs.data.metrics import iou
 from bboxtune.filters import jit
@@ -160,7 +162,10 @@ def candidate_scores(kf: ScaledSortKF, y: np.ndarray, candidates: Mapping[str, n
 
 class CausalSearch(TrackHistories):
     """Re-tunes the live tracks of a tracker (frame interval ``tau`` s) by the search of the module docstring with
-    ``settings``; the tracker's filter bank must run :data:`BACKEND`."""
+    ``settings``; the tracker's filter bank must run :data:`BACKEND`. With the compiled kernels the whole choice
+    runs in :func:`bboxtune.agents.tracking.search_kernels.choose_candidates` (histories up to
+    :data:`~bboxtune.agents.tracking.search_kernels.LONGEST` frames); otherwise in numpy (:func:`candidate_scores`),
+    with the same result."""
 
     def __init__(self, tau: float, settings: SearchSettings | None = None) -> None:
         self.settings = settings or SearchSettings()
@@ -169,6 +174,11 @@ class CausalSearch(TrackHistories):
         self.candidates = candidate_grid(self.settings.width, self.settings.steps)
         self.stock = int(np.flatnonzero(np.all([self.candidates[k] == v for k, v in STOCK.items()], axis=0))[0])
         self._frames = 0
+        n_candidates = self.settings.steps ** 2
+        noise = self.kf._noise(self.candidates)  # the candidates' fixed variances, built once
+        self._variances = tuple(np.ascontiguousarray(_Variance(pair, shape).fixed) for pair, shape in (
+            (noise.start, (2, M, n_candidates)), (noise.process, (2, M, n_candidates)),
+            (noise.measurement, (M, n_candidates))))
 
     def observe(self, measured: np.ndarray) -> None:
         super().observe(measured)
@@ -182,11 +192,21 @@ class CausalSearch(TrackHistories):
         if not len(due):
             return
         seen = self.y[due, -min(int(self.age[due].max()), self.history):]
+        if jit.enabled() and seen.shape[1] <= LONGEST:  # the boxes were checked by the bank's update
+            s = self.settings
+            choice = choose_candidates(np.ascontiguousarray(seen), *self._variances, AREA, float(s.cap),
+                                       float(s.margin), self.stock, s.min_scored)
+        else:
+            choice = self._reference_choice(seen)
+        bank.set_params(due, {name: values[choice] for name, values in self.candidates.items()})
+        self.calls += len(due)
+
+    def _reference_choice(self, seen: np.ndarray) -> np.ndarray:
+        """The chosen candidate (n,) of each history ``seen`` (n, T, 4) xywh, in numpy (module docstring)."""
         scores, counts = candidate_scores(self.kf, seen, self.candidates, self.settings.cap)
         penalty = np.full(scores.shape[1], self.settings.margin)
         penalty[self.stock] = 0.0
         adjusted = np.nan_to_num(scores, nan=-1.0) - penalty
         choice = np.argmax(adjusted, axis=1)
         choice[(adjusted[:, self.stock] >= adjusted.max(axis=1)) | (counts < self.settings.min_scored)] = self.stock
-        bank.set_params(due, {name: values[choice] for name, values in self.candidates.items()})
-        self.calls += len(due)
+        return choice

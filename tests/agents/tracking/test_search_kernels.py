@@ -1,5 +1,6 @@
-"""The compiled kernel of the search's candidate predictions equals its numpy reference (the batch filter's own
-steps), gaps, late starts and SORT's area guard included."""
+"""The compiled kernels of the search equal their numpy references: the candidate predictions (the batch filter's
+own steps) and the choice of a candidate per track (numpy's scores, margin and ties), gaps, late starts and SORT's
+area guard included."""
 
 from __future__ import annotations
 
@@ -8,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bboxtune import filters
-from bboxtune.agents.tracking.search_kernels import AREA, prior_means
-from bboxtune.agents.tracking.search_tune import candidate_grid, predicted_boxes
+from bboxtune.agents.tracking.search_kernels import AREA, choose_candidates, prior_means
+from bboxtune.agents.tracking.search_tune import CausalSearch, SearchSettings, candidate_grid, predicted_boxes
 from bboxtune.envs.data.boxes import xywh_to_cxcywh
 from bboxtune.filters.sort_kf import ScaledSortKF
 
@@ -56,3 +57,23 @@ def test_the_guard_fires_and_matches() -> None:
     unguarded, _ = prior_means(z, *fixed, -1)
     assert not np.allclose(guarded[:, 2], unguarded[:, 2], equal_nan=True)  # the guard changed the area here
     np.testing.assert_allclose(guarded.transpose(2, 0, 1)[..., :2], xywh_to_cxcywh(kernel_boxes)[..., :2], rtol=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 6), T=st.integers(2, 128), missing=st.floats(0.0, 0.7),
+       shrink=st.sampled_from([0.0, 3.0, 12.0]), cap=st.sampled_from([1e-3, 0.5, 1.0]),
+       margin=st.sampled_from([0.0, 0.01, 1.0]), min_scored=st.integers(1, 8))
+def test_the_choice_kernel_equals_the_reference(seed: int, n: int, T: int, missing: float, shrink: float, cap: float,
+                                                margin: float, min_scored: int) -> None:
+    search = CausalSearch(1 / 14, SearchSettings(history=T, cap=cap, margin=margin, min_scored=min_scored))
+    y = _boxes(seed, n, T, missing, shrink)
+    chosen = choose_candidates(y, *search._variances, AREA, cap, margin, search.stock, min_scored)
+    np.testing.assert_array_equal(chosen, search._reference_choice(y))
+
+
+def test_the_choice_kernel_leaves_the_stock_candidate() -> None:
+    search = CausalSearch(1 / 14, SearchSettings(history=60, min_scored=3))
+    y = _boxes(4, 12, 60, 0.2, 3.0)
+    chosen = choose_candidates(y, *search._variances, AREA, 0.5, 0.0, search.stock, 3)
+    assert (chosen != search.stock).any()  # the comparison above is not only of stock choices
+    np.testing.assert_array_equal(chosen, search._reference_choice(y))
