@@ -29,7 +29,9 @@ from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.filters.base import Carry
 from bboxtune.filters.box_online import OnlineBoxKF, track_params
 from bboxtune.filters.bytetrack_kf import BoxKF
+from bboxtune.filters.fir_core import FIRFilter
 from bboxtune.filters.history import History
+from bboxtune.filters.online_carry import OnlineFIR, OnlineKalman
 
 M = 4  # measured coordinates of a box: cx, cy, w, h
 
@@ -128,7 +130,8 @@ class FilterBank:
     def __init__(self, backend: str, tau: float, params: Mapping[str, Any] | None = None) -> None:
         f = filters.make(backend, filters.constant_velocity(tau, ndim=M), **dict(params or {}))
         self.backend = backend
-        self.engine: OnlineFilter = OnlineBoxKF(f) if isinstance(f, BoxKF) else CarryFilter(f)
+        self.engine: OnlineFilter = (OnlineBoxKF(f) if isinstance(f, BoxKF) else OnlineFIR(f) if isinstance(f, FIRFilter)
+                                     else OnlineKalman(f))
 
     @property
     def n(self) -> int:

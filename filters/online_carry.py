@@ -1,0 +1,314 @@
+"""Any back end of :mod:`bboxtune.filters` one frame at a time over a changing set of tracks, as a tracker runs it:
+predict every track, update the matched ones, start and end tracks between frames, re-tune some.
+
+The reference is a carry (:meth:`bboxtune.filters.base.Filter.positions_from` once per frame, with a filter built
+and validated for the live tracks' parameters every call, as ``bboxtune.agents.tracking.filter_bank.CarryFilter``
+runs it). The engines here compute the same estimates with the back end's own code on the same numbers, minus the
+per-frame bookkeeping:
+
+* :class:`OnlineKalman` (the Kalman family: ``kf``, ``kf_cmn``, ``ukf``): the carried state stays split into
+  channels (:class:`bboxtune.filters.base.AxisCarry`) between frames, and each frame is one call of the back end's
+  ``_run_axes_from`` on one frame — no carry validation, no split / merge, no new filter;
+* :class:`OnlineFIR` (the FIR family: ``ufir``, ``ufir_cmn``, ``ofir``, ``oufir``, ``fir``): the measurement history
+  is a buffer appended in place (the reference concatenates the whole history every frame), and each frame filters
+  its last max(N) + 1 frames as :func:`bboxtune.filters.history.continue_span` does.
+
+Both build and validate the filter of the live tracks' parameters only when ``start``, ``keep`` or ``set_params``
+change them. Boxes are (cx, cy, w, h) (any 4-coordinate model); parameters are the back end's ``PER_TRACK`` ones,
+per track; new tracks start with the template filter's.
+
+>>> import numpy as np
+>>> from bboxtune import filters
+>>> kf = OnlineKalman(filters.make("kf", filters.constant_velocity(1 / 30, ndim=4), sigma_w=300.0, sigma_v=3.0))
+>>> kf.start(np.array([[50.0, 60.0, 20.0, 40.0]]))
+>>> kf.update(np.array([[52.0, 61.0, 20.0, 40.0]])).round(2).tolist()
+[[52.0, 61.0, 20.0, 40.0]]
+>>> kf.predict().round(2).tolist()
+[[54.0, 62.0, 20.0, 40.0]]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, cast
+
+import numpy as np
+
+from bboxtune.filters.base import AxisCarry, Filter, measurement_history
+from bboxtune.filters.fir_core import FIRFilter
+from bboxtune.filters.validation import broadcast_params, check_measurements, check_values
+
+M = 4  # measured coordinates of a box: cx, cy, w, h
+
+
+def track_params(f: Filter, current: Mapping[str, np.ndarray], rows: np.ndarray, params: Mapping[str, Any]
+                 ) -> dict[str, np.ndarray]:
+    """Per-track parameters ``current`` (``{name: (n,)}``) with those of the tracks ``rows`` replaced by ``params``
+    (``{name: scalar or (len(rows),)}``), checked by ``f``'s class as ``filters.make`` checks them."""
+    given = type(f)(f.model, **{**f.params, **params}).params
+    updated = dict(current)
+    for name in params:
+        updated[name] = current[name].copy()
+        updated[name][rows] = given[name]
+    return updated
+
+
+def check_rows(boxes: np.ndarray, n: int) -> np.ndarray:
+    """``boxes`` as a float (n, 4) array (one row per live track), else a ValueError naming it."""
+    boxes = np.asarray(boxes, dtype=float)
+    if boxes.shape != (n, M):
+        raise ValueError(f"boxes has shape {boxes.shape}; allowed ({n}, {M}): one row per live track")
+    check_values("boxes", boxes)
+    return boxes
+
+
+class _PerTrack:
+    """The per-track parameters of the live tracks and the filter configured with them (built when they change)."""
+
+    def __init__(self, f: Filter) -> None:
+        if f.model.M != M:
+            raise ValueError(f"f's model measures {f.model.M} coordinate(s); allowed {M} (cx, cy, w, h)")
+        self.f = f
+        self.params: dict[str, np.ndarray] = {name: np.empty(0) for name in f.PER_TRACK}
+        self._configured: Filter | None = None  # the filter of the live tracks' parameters
+        self._by_channel: dict[str, Any] | None = None  # its parameters per channel (channel_params)
+        self._n = 0
+
+    @property
+    def n(self) -> int:
+        """Live tracks."""
+        return self._n
+
+    def _filter(self) -> Filter:
+        if self._configured is None:
+            fixed = {k: v for k, v in self.f.params.items() if k not in self.params}
+            self._configured = type(self.f)(self.f.model, **fixed, **self.params)
+        return self._configured
+
+    def _channel_params(self) -> dict[str, Any]:
+        if self._by_channel is None:
+            self._by_channel = channel_params(self._filter(), self._n)
+        return self._by_channel
+
+    def _changed(self) -> None:
+        self._configured = self._by_channel = None
+
+    def _add_params(self, k: int, params: Mapping[str, Any] | None) -> None:
+        """Append the parameters of k new tracks: the template's, with ``params`` (checked) where given."""
+        given = self.f.params if not params else type(self.f)(self.f.model, **{**self.f.params, **params}).params
+        self.params = {name: np.concatenate([self.params[name], np.broadcast_to(np.asarray(given[name], dtype=float), (k,))])
+                       for name in self.params}
+        self._changed()
+
+    def _keep_params(self, index: np.ndarray) -> None:
+        self.params = {name: values[index] for name, values in self.params.items()}
+        self._changed()
+        self._n = len(index)
+
+    def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
+        """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on."""
+        self.params = track_params(self.f, self.params, rows, params)
+        self._changed()
+
+
+def channel_params(f: Filter, n: int) -> dict[str, Any]:
+    """``f``'s parameters as its ``_run_axes_from`` takes them for n tracks: per channel (n·4,), track-major, with the
+    shared ones as they are (what :meth:`bboxtune.filters.base.Filter._chunks` hands it)."""
+    per_track = broadcast_params({k: v for k, v in f.params.items() if k in f.PER_TRACK}, n, True)
+    return {**{k: v for k, v in f.params.items() if k not in per_track},
+            **{k: np.repeat(v, M) for k, v in per_track.items()}}
+
+
+class OnlineKalman(_PerTrack):
+    """A Kalman-family back end ``f`` (``kf``, ``kf_cmn``, ``ukf``; a 4-coordinate model) for n live tracks, its
+    carry kept in channels (channel c = track c // 4, coordinate c % 4)."""
+
+    def __init__(self, f: Filter) -> None:
+        if isinstance(f, FIRFilter):
+            raise TypeError(f"f is a {type(f).__name__}; allowed: a Kalman-family back end (OnlineFIR runs the FIR family)")
+        super().__init__(f)
+        self._carry: AxisCarry | None = None  # every field set, per channel
+
+    def _step(self, z: np.ndarray) -> tuple[np.ndarray, AxisCarry]:
+        """One frame ``z`` (C, 1) of every channel from the carry: positions (C,) and the carry after it."""
+        f, params, start = self._filter(), self._channel_params(), self._carry
+        axes, end = f._run_axes_from(z, params, start, None)
+        f._check_finite(axes, z, slice(0, self._n), params)
+        history = measurement_history(z, start)
+        return axes[:, 0, 0], AxisCarry(x=end.x, P=end.P, c=end.c, P_c=end.P_c, **history)
+
+    def predict(self) -> np.ndarray:
+        """(n, 4) the boxes every track is expected at in the next frame (the state is not changed)."""
+        if self._n == 0 or self._carry is None:
+            return np.empty((0, M))
+        F = self.f.model.axis().F  # a frame without a measurement is predict-only in every Kalman back end: x = F x
+        x = self._carry.x
+        return (F[0, 0] * x[:, 0] + F[0, 1] * x[:, 1]).reshape(self._n, M)
+
+    def update(self, boxes: np.ndarray) -> np.ndarray:
+        """One frame: every track predicts, those with a detection (a row of ``boxes`` (n, 4); NaN rows: none)
+        update; returns the estimates (n, 4)."""
+        boxes = check_rows(boxes, self._n)
+        if self._n == 0:
+            return np.empty((0, M))
+        positions, self._carry = self._step(boxes.reshape(-1, 1))
+        return positions.reshape(self._n, M)
+
+    def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None:
+        """Start k tracks at their first detections ``boxes`` (k, 4) (appended as the last k rows), with ``params``
+        (``{name: scalar or (k,)}``; default: the template's)."""
+        boxes = np.asarray(boxes, dtype=float)
+        k = len(boxes)
+        if k == 0:
+            return
+        if boxes.ndim != 2 or boxes.shape[1] != M or np.isnan(boxes).any():
+            raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
+        first = self.f if not params else type(self.f)(self.f.model, **{**self.f.params, **params})
+        z, run_params = boxes.reshape(-1, 1), channel_params(first, k)
+        axes, end = first._run_axes_from(z, run_params, None, None)
+        first._check_finite(axes, z, slice(0, k), run_params)
+        fresh = AxisCarry(x=end.x, P=end.P, c=end.c, P_c=end.P_c, **measurement_history(z, None))
+        self._carry = fresh if self._carry is None else _join(self._carry, fresh)
+        self._add_params(k, params)
+        self._n += k
+
+    def keep(self, index: np.ndarray) -> None:
+        """Keep only the tracks ``index`` (an int array), in that order."""
+        index = np.asarray(index, dtype=np.int64)
+        channels = (index[:, None] * M + np.arange(M)).ravel()
+        if self._carry is not None:
+            self._carry = None if len(index) == 0 else _take(self._carry, channels, index)
+        self._keep_params(index)
+
+
+def _join(first: AxisCarry, second: AxisCarry) -> AxisCarry:
+    """The channels of ``first`` followed by those of ``second``."""
+    parts = {name: (getattr(first, name), getattr(second, name)) for name in AxisCarry.__dataclass_fields__}
+    return AxisCarry(**{name: None if a is None else np.concatenate([a, b]) for name, (a, b) in parts.items()})
+
+
+def _take(carry: AxisCarry, channels: np.ndarray, tracks: np.ndarray) -> AxisCarry:
+    """The channels ``channels`` of ``carry`` (its camera states, one block per track: of ``tracks``)."""
+    out: dict[str, Any] = {name: None if getattr(carry, name) is None else getattr(carry, name)[channels]
+                           for name in AxisCarry.__dataclass_fields__}
+    for name in ("c", "P_c"):  # track-major camera channels: n_c per track
+        value = getattr(carry, name)
+        if value is not None:
+            per_track = len(value) // (len(carry.x) // M)
+            out[name] = value.reshape(-1, per_track, *value.shape[1:])[tracks].reshape(-1, *value.shape[1:])
+    return AxisCarry(**out)
+
+
+class OnlineFIR(_PerTrack):
+    """A FIR-family back end ``f`` (``ufir``, ``ufir_cmn``, ``ofir``, ``oufir``, ``fir``; a 4-coordinate model) for n
+    live tracks, its measurement history in a buffer that grows by doubling (the reference keeps every frame too:
+    a later ``set_params`` may lengthen the horizon). Each frame computes the newest estimate only
+    (:func:`newest_positions`), on the frames the reference filters."""
+
+    def __init__(self, f: Filter) -> None:
+        if not isinstance(f, FIRFilter):
+            raise TypeError(f"f is a {type(f).__name__}; allowed: a FIR-family back end (OnlineKalman runs the others)")
+        super().__init__(f)
+        self._y = np.full((0, 16, M), np.nan)  # (n, capacity, 4): frames 0 … length − 1 are the history
+        self._length = 0  # frames of history (0: none yet, as after every track ended)
+        self._windows: WindowGroups | None = None  # the live tracks' gain groups (when their parameters change)
+
+    def _changed(self) -> None:
+        super()._changed()
+        self._windows = None
+
+    def _estimate(self, frame: np.ndarray) -> np.ndarray:
+        """Positions (n, 4) at a next frame measured ``frame`` (n, 4), from the history (which is not extended)."""
+        if self._length == self._y.shape[1]:
+            self._y = np.concatenate([self._y, np.full_like(self._y, np.nan)], axis=1)
+        if self._windows is None:
+            self._windows = WindowGroups(cast(FIRFilter, self._filter()), self._n)
+        self._y[:, self._length] = frame
+        lead = min(self._length, self._windows.reach)
+        span = self._y[:, self._length - lead:self._length + 1].transpose(0, 2, 1).reshape(self._n * M, lead + 1)
+        return self._windows.newest_positions(span).reshape(self._n, M)
+
+    def predict(self) -> np.ndarray:
+        """(n, 4) the estimate of every track at the next frame without a detection (the history is not changed)."""
+        if self._n == 0:
+            return np.empty((0, M))
+        return self._estimate(np.full((self._n, M), np.nan))
+
+    def update(self, boxes: np.ndarray) -> np.ndarray:
+        """One frame: each track's detection (a row of ``boxes`` (n, 4); NaN rows: none) joins its history; returns
+        the estimates (n, 4)."""
+        boxes = check_rows(boxes, self._n)
+        if self._n == 0:
+            return np.empty((0, M))
+        estimates = self._estimate(boxes)
+        self._length += 1
+        return estimates
+
+    def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None:
+        """Start k tracks at their first detections ``boxes`` (k, 4) (appended as the last k rows; their history is
+        that frame, led by missing frames back to the oldest track's first), with ``params`` (``{name: scalar or
+        (k,)}``; default: the template's)."""
+        boxes = np.asarray(boxes, dtype=float)
+        k = len(boxes)
+        if k == 0:
+            return
+        if boxes.ndim != 2 or boxes.shape[1] != M or np.isnan(boxes).any():
+            raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
+        check_measurements(boxes[:, None], M)
+        self._add_params(k, params)
+        self._length = max(self._length, 1)
+        fresh = np.full((k, self._y.shape[1], M), np.nan)
+        fresh[:, self._length - 1] = boxes
+        self._y = np.concatenate([self._y, fresh])
+        self._n += k
+
+    def keep(self, index: np.ndarray) -> None:
+        """Keep only the tracks ``index`` (an int array), in that order (the history starts over when none is kept)."""
+        index = np.asarray(index, dtype=np.int64)
+        self._y = self._y[index]
+        if len(index) == 0:
+            self._length = 0
+        self._keep_params(index)
+
+
+class WindowGroups:
+    """The FIR windows of n tracks of ``f`` (per-track parameters as ``f`` holds them), in frame units
+    (:meth:`FIRFilter._run_axes`): every channel's gain group, window length and the gain parameters."""
+
+    def __init__(self, f: FIRFilter, n: int) -> None:
+        self.f = f._in_frames if f.model.tau != 1.0 else f  # the gains of the frame-unit twin, as _run_axes uses
+        params = f.params_in_frames(channel_params(f, n), f.model.tau)
+        self.group, self.gparams = self.f._groups(params)
+        self.length = (self.gparams["horizon"] + f.EXTRA_SAMPLES)[self.group]  # (C,) full window of each channel
+        self.reach = int(np.max(f.params["horizon"])) + 1  # history frames a continued run reads (continue_span)
+
+    def newest_positions(self, z: np.ndarray) -> np.ndarray:
+        """The position estimate (C,) at the last frame of channels ``z`` (C, S) (frame 0 = each one's first): what
+        ``f.positions`` gives there — the full window, the start-up window (frames 0 … S − 1) or the window with its
+        missing samples dropped, by the same gains; the latest measurement where the window does not determine
+        the state (NaN before any)."""
+        C, S = z.shape
+        valid = ~np.isnan(z)
+        windows = np.minimum(self.length, S)  # shorter than the channel's window: start-up
+        out = np.empty(C)
+        for L in np.unique(windows).tolist():
+            rows = np.flatnonzero(windows == L)
+            masks = valid[rows, S - L:]
+            keys = np.column_stack([self.group[rows], np.packbits(masks, axis=1)])
+            _, first, kind = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+            gp = {k: v[self.group[rows[first]]] for k, v in self.gparams.items()}
+            determined = self.f.observable(masks[first], gp)
+            W = np.full((len(first), L), np.nan)
+            if determined.any():
+                ok = np.flatnonzero(determined)
+                W[ok] = self.f._lookup(masks[first[ok]], {k: v[ok] for k, v in gp.items()})[:, 0]
+            out[rows] = np.einsum("pl,pl->p", W[kind.reshape(-1)], np.where(masks, z[rows, S - L:], 0.0))
+            failed = determined[kind.reshape(-1)] & np.isnan(out[rows])
+            if failed.any():
+                raise FloatingPointError(f"{self.f.name}: no finite estimate for channel {rows[np.argmax(failed)]} "
+                                         "although its window determines the state — please report this input")
+        held = np.isnan(out)  # undetermined windows: the latest measurement of the span (NaN before any)
+        if held.any():
+            last = S - 1 - np.argmax(valid[held, ::-1], axis=1)
+            out[held] = np.where(valid[held].any(axis=1), z[held, last], np.nan)
+        return out
