@@ -19,7 +19,7 @@ The steps are the batch recursion's own (:meth:`BoxKF.predict_state`, :func:`bbo
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -46,10 +46,14 @@ class OnlineBoxKF:
 
     def _variances(self) -> tuple[_Variance, _Variance, _Variance]:
         if self._noise is None:
-            noise, n = self.kf._noise(self.params), self.n
-            self._noise = (_Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n)),
-                           _Variance(noise.measurement, (M, n)))
+            self._noise = self._variances_of(self.params, self.n)
         return self._noise
+
+    def _variances_of(self, params: Mapping[str, np.ndarray], n: int) -> tuple[_Variance, _Variance, _Variance]:
+        """(P₀, Q, R) of n tracks with ``params`` (``{name: (n,)}``)."""
+        noise = self.kf._noise(dict(params))
+        return (_Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n)),
+                _Variance(noise.measurement, (M, n)))
 
     def _boxes(self, X: np.ndarray) -> np.ndarray:
         boxes = X[0].T.copy()
@@ -84,19 +88,26 @@ class OnlineBoxKF:
             raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
         check_boxes(boxes[None])
         k = len(boxes)
-        given = type(self.kf)(self.kf.model, **{**self.kf.params, **(params or {})}).params  # validated
-        self.params = {name: np.concatenate([self.params[name], np.broadcast_to(given[name], (k,))])
-                       for name in self.params}
-        self.X = np.concatenate([self.X, np.full((5, M, k), np.nan)], axis=2)
-        self._noise = None
-        rows = np.arange(self.n - k, self.n)
-        initiate(self.X, self.kf._measure(boxes.T[None])[0], self._variances()[0], rows)
+        given = type(self.kf)(self.kf.model, **{**self.kf.params, **params}).params if params else self.kf.params
+        fresh = {name: np.broadcast_to(given[name], (k,)) for name in self.params}
+        noise = self._variances_of(fresh, k)
+        X = np.full((5, M, k), np.nan)
+        initiate(X, self.kf._measure(boxes.T[None])[0], noise[0], np.arange(k))
+        self.X = np.concatenate([self.X, X], axis=2)
+        self.params = {name: np.concatenate([self.params[name], fresh[name]]) for name in self.params}
+        if self._noise is not None:  # the live tracks' noise, then the new ones'
+            self._noise = cast(tuple[_Variance, _Variance, _Variance], tuple(
+                _Variance((np.concatenate([old.slope, new.slope], -1), np.concatenate([old.offset, new.offset], -1)),
+                          new.slope.shape[:-1] + (self.n,)) for old, new in zip(self._noise, noise, strict=True)))
 
     def keep(self, index: np.ndarray) -> None:
         """Keep only the tracks ``index`` (an int array), in that order."""
         self.X = self.X[:, :, index]
         self.params = {name: values[index] for name, values in self.params.items()}
-        self._noise = None
+        if self._noise is not None:
+            self._noise = cast(tuple[_Variance, _Variance, _Variance], tuple(
+                _Variance((v.slope[..., index], v.offset[..., index]), v.slope.shape[:-1] + (len(index),))
+                for v in self._noise))
 
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
         """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on."""

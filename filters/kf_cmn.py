@@ -76,6 +76,7 @@ import numpy as np
 
 from bboxtune.filters import jit, kalman_kernels
 from bboxtune.filters.base import AxisCarry, Filter
+from bboxtune.filters.kf import TABLES
 from bboxtune.filters.kalman_core import (
     UPDATE_Z,
     FramePrior,
@@ -121,7 +122,8 @@ class KFCMN(FramePrior, Filter):
         difference = kalman_kernels.differenced_kinds if jit.enabled() else differenced_kinds
         kinds, gaps, m = difference(kinds, z, finite, y_before, missed, psi)
         row_params = np.stack([params["sigma_w"], params["sigma_v"], psi], axis=1)
-        states, P_end = filter_channels(m, kinds, row_params, x_start, P_start, lambda p: cmn_tables(axis, p, gaps))
+        states, P_end = filter_channels(m, kinds, row_params, x_start, P_start, lambda p: TABLES.get(
+            ("kf_cmn", axis.F.tobytes(), axis.B.tobytes(), gaps.tobytes(), p), lambda: cmn_tables(axis, p, gaps)))
         return states, AxisCarry(x=states[:, -1], P=P_end)
 
 

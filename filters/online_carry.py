@@ -36,9 +36,10 @@ import numpy as np
 
 from bboxtune.filters.base import AxisCarry, Filter, measurement_history
 from bboxtune.filters.fir_core import FIRFilter
-from bboxtune.filters.validation import broadcast_params, check_measurements, check_values
+from bboxtune.filters.validation import check_measurements, check_values
 
 M = 4  # measured coordinates of a box: cx, cy, w, h
+GAIN_KINDS = 4096  # window kinds (gain parameters, missing pattern) whose gains an OnlineFIR keeps
 
 
 def track_params(f: Filter, current: Mapping[str, np.ndarray], rows: np.ndarray, params: Mapping[str, Any]
@@ -63,15 +64,15 @@ def check_rows(boxes: np.ndarray, n: int) -> np.ndarray:
 
 
 class _PerTrack:
-    """The per-track parameters of the live tracks and the filter configured with them (built when they change)."""
+    """The per-track parameters of the live tracks, each validated where it was set (the template ``f``'s, or
+    :func:`track_params`), and their per-channel form (built when they change)."""
 
     def __init__(self, f: Filter) -> None:
         if f.model.M != M:
             raise ValueError(f"f's model measures {f.model.M} coordinate(s); allowed {M} (cx, cy, w, h)")
         self.f = f
         self.params: dict[str, np.ndarray] = {name: np.empty(0) for name in f.PER_TRACK}
-        self._configured: Filter | None = None  # the filter of the live tracks' parameters
-        self._by_channel: dict[str, Any] | None = None  # its parameters per channel (channel_params)
+        self._by_channel: dict[str, Any] | None = None  # the parameters per channel (channel_params)
         self._n = 0
 
     @property
@@ -79,19 +80,13 @@ class _PerTrack:
         """Live tracks."""
         return self._n
 
-    def _filter(self) -> Filter:
-        if self._configured is None:
-            fixed = {k: v for k, v in self.f.params.items() if k not in self.params}
-            self._configured = type(self.f)(self.f.model, **fixed, **self.params)
-        return self._configured
-
     def _channel_params(self) -> dict[str, Any]:
         if self._by_channel is None:
-            self._by_channel = channel_params(self._filter(), self._n)
+            self._by_channel = channel_params(self.f, self.params)
         return self._by_channel
 
     def _changed(self) -> None:
-        self._configured = self._by_channel = None
+        self._by_channel = None
 
     def _add_params(self, k: int, params: Mapping[str, Any] | None) -> None:
         """Append the parameters of k new tracks: the template's, with ``params`` (checked) where given."""
@@ -111,10 +106,10 @@ class _PerTrack:
         self._changed()
 
 
-def channel_params(f: Filter, n: int) -> dict[str, Any]:
-    """``f``'s parameters as its ``_run_axes_from`` takes them for n tracks: per channel (n·4,), track-major, with the
-    shared ones as they are (what :meth:`bboxtune.filters.base.Filter._chunks` hands it)."""
-    per_track = broadcast_params({k: v for k, v in f.params.items() if k in f.PER_TRACK}, n, True)
+def channel_params(f: Filter, per_track: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """The parameters of ``f``'s ``_run_axes_from`` / ``_run_axes`` for tracks with ``per_track`` parameters
+    (``{name: (n,)}``, validated): per channel (n·4,), track-major, with ``f``'s shared ones (what
+    :meth:`bboxtune.filters.base.Filter._chunks` hands them)."""
     return {**{k: v for k, v in f.params.items() if k not in per_track},
             **{k: np.repeat(v, M) for k, v in per_track.items()}}
 
@@ -131,11 +126,11 @@ class OnlineKalman(_PerTrack):
 
     def _step(self, z: np.ndarray) -> tuple[np.ndarray, AxisCarry]:
         """One frame ``z`` (C, 1) of every channel from the carry: positions (C,) and the carry after it."""
-        f, params, start = self._filter(), self._channel_params(), self._carry
+        f, params, start = self.f, self._channel_params(), self._carry
         axes, end = f._run_axes_from(z, params, start, None)
-        f._check_finite(axes, z, slice(0, self._n), params)
-        history = measurement_history(z, start)
-        return axes[:, 0, 0], AxisCarry(x=end.x, P=end.P, c=end.c, P_c=end.P_c, **history)
+        if not np.isfinite(axes).all():  # NaN is allowed only before a channel's first measurement
+            f._check_finite(axes, z, slice(0, self._n), params)
+        return axes[:, 0, 0], AxisCarry(x=end.x, P=end.P, c=end.c, P_c=end.P_c, **next_history(z[:, 0], start))
 
     def predict(self) -> np.ndarray:
         """(n, 4) the boxes every track is expected at in the next frame (the state is not changed)."""
@@ -163,13 +158,13 @@ class OnlineKalman(_PerTrack):
             return
         if boxes.ndim != 2 or boxes.shape[1] != M or np.isnan(boxes).any():
             raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
-        first = self.f if not params else type(self.f)(self.f.model, **{**self.f.params, **params})
-        z, run_params = boxes.reshape(-1, 1), channel_params(first, k)
-        axes, end = first._run_axes_from(z, run_params, None, None)
-        first._check_finite(axes, z, slice(0, k), run_params)
+        self._add_params(k, params)
+        z, run_params = boxes.reshape(-1, 1), {**self._channel_params()}
+        run_params.update({name: v[-k * M:] for name, v in run_params.items() if name in self.params})
+        axes, end = self.f._run_axes_from(z, run_params, None, None)
+        self.f._check_finite(axes, z, slice(self._n, self._n + k), run_params)
         fresh = AxisCarry(x=end.x, P=end.P, c=end.c, P_c=end.P_c, **measurement_history(z, None))
         self._carry = fresh if self._carry is None else _join(self._carry, fresh)
-        self._add_params(k, params)
         self._n += k
 
     def keep(self, index: np.ndarray) -> None:
@@ -179,6 +174,16 @@ class OnlineKalman(_PerTrack):
         if self._carry is not None:
             self._carry = None if len(index) == 0 else _take(self._carry, channels, index)
         self._keep_params(index)
+
+
+def next_history(z: np.ndarray, start: AxisCarry | None) -> dict[str, np.ndarray]:
+    """:func:`bboxtune.filters.base.measurement_history` of one frame ``z`` (C,) after ``start``: the same values."""
+    if start is None:
+        return measurement_history(z[:, None], None)
+    finite = ~np.isnan(z)
+    y_before, missed = cast(np.ndarray, start.y_last), cast(np.ndarray, start.missed)  # set by every engine step
+    return {"y_last": np.where(finite, z, y_before), "missed": np.where(finite, 0, np.where(np.isnan(y_before), 0, missed + 1)),
+            "measured": cast(np.ndarray, start.measured) | finite}
 
 
 def _join(first: AxisCarry, second: AxisCarry) -> AxisCarry:
@@ -212,6 +217,7 @@ class OnlineFIR(_PerTrack):
         self._y = np.full((0, 16, M), np.nan)  # (n, capacity, 4): frames 0 … length − 1 are the history
         self._length = 0  # frames of history (0: none yet, as after every track ended)
         self._windows: WindowGroups | None = None  # the live tracks' gain groups (when their parameters change)
+        self._gains: dict[tuple, np.ndarray] = {}  # WindowGroups.gains
 
     def _changed(self) -> None:
         super()._changed()
@@ -222,7 +228,7 @@ class OnlineFIR(_PerTrack):
         if self._length == self._y.shape[1]:
             self._y = np.concatenate([self._y, np.full_like(self._y, np.nan)], axis=1)
         if self._windows is None:
-            self._windows = WindowGroups(cast(FIRFilter, self._filter()), self._n)
+            self._windows = WindowGroups(cast(FIRFilter, self.f), self._channel_params(), self._gains)
         self._y[:, self._length] = frame
         lead = min(self._length, self._windows.reach)
         span = self._y[:, self._length - lead:self._length + 1].transpose(0, 2, 1).reshape(self._n * M, lead + 1)
@@ -272,15 +278,18 @@ class OnlineFIR(_PerTrack):
 
 
 class WindowGroups:
-    """The FIR windows of n tracks of ``f`` (per-track parameters as ``f`` holds them), in frame units
-    (:meth:`FIRFilter._run_axes`): every channel's gain group, window length and the gain parameters."""
+    """The FIR windows of the channels of back end ``f`` with parameters ``params`` (:func:`channel_params`), in
+    frame units (:meth:`FIRFilter._run_axes`): every channel's gain group, window length and gain parameters.
+    ``gains`` keeps each window kind's position gain (NaN: the window does not determine the state) across
+    instances: ``{(gain parameters, window length, mask bits): (L,)}``."""
 
-    def __init__(self, f: FIRFilter, n: int) -> None:
+    def __init__(self, f: FIRFilter, params: dict[str, Any], gains: dict[tuple, np.ndarray]) -> None:
         self.f = f._in_frames if f.model.tau != 1.0 else f  # the gains of the frame-unit twin, as _run_axes uses
-        params = f.params_in_frames(channel_params(f, n), f.model.tau)
-        self.group, self.gparams = self.f._groups(params)
+        self.group, self.gparams = self.f._groups(f.params_in_frames(params, f.model.tau))
         self.length = (self.gparams["horizon"] + f.EXTRA_SAMPLES)[self.group]  # (C,) full window of each channel
-        self.reach = int(np.max(f.params["horizon"])) + 1  # history frames a continued run reads (continue_span)
+        self.reach = int(np.max(params["horizon"])) + 1  # history frames a continued run reads (continue_span)
+        self.group_keys = list(zip(*(v.tolist() for v in self.gparams.values()), strict=True))
+        self.gains = gains
 
     def newest_positions(self, z: np.ndarray) -> np.ndarray:
         """The position estimate (C,) at the last frame of channels ``z`` (C, S) (frame 0 = each one's first): what
@@ -291,19 +300,19 @@ class WindowGroups:
         valid = ~np.isnan(z)
         windows = np.minimum(self.length, S)  # shorter than the channel's window: start-up
         out = np.empty(C)
+        n_groups = len(self.group_keys)
         for L in np.unique(windows).tolist():
-            rows = np.flatnonzero(windows == L)
+            rows = np.flatnonzero(windows == L) if windows[0] != L or not (windows == L).all() else np.arange(C)
             masks = valid[rows, S - L:]
-            keys = np.column_stack([self.group[rows], np.packbits(masks, axis=1)])
-            _, first, kind = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-            gp = {k: v[self.group[rows[first]]] for k, v in self.gparams.items()}
-            determined = self.f.observable(masks[first], gp)
-            W = np.full((len(first), L), np.nan)
-            if determined.any():
-                ok = np.flatnonzero(determined)
-                W[ok] = self.f._lookup(masks[first[ok]], {k: v[ok] for k, v in gp.items()})[:, 0]
+            if L + n_groups.bit_length() > 62:  # a window kind per (group, mask) in 63 bits: else pack the masks
+                codes = np.unique(np.column_stack([self.group[rows], np.packbits(masks, axis=1)]), axis=0,
+                                  return_inverse=True)[1].reshape(-1)
+            else:
+                codes = (masks.astype(np.int64) @ (np.int64(1) << np.arange(L, dtype=np.int64))) * n_groups + self.group[rows]
+            unique, first, kind = np.unique(codes, return_index=True, return_inverse=True)
+            W = np.stack([self._gain(masks[i], int(self.group[rows[i]])) for i in first.tolist()])
             out[rows] = np.einsum("pl,pl->p", W[kind.reshape(-1)], np.where(masks, z[rows, S - L:], 0.0))
-            failed = determined[kind.reshape(-1)] & np.isnan(out[rows])
+            failed = ~np.isnan(W[kind.reshape(-1), -1]) & np.isnan(out[rows])
             if failed.any():
                 raise FloatingPointError(f"{self.f.name}: no finite estimate for channel {rows[np.argmax(failed)]} "
                                          "although its window determines the state — please report this input")
@@ -312,3 +321,18 @@ class WindowGroups:
             last = S - 1 - np.argmax(valid[held, ::-1], axis=1)
             out[held] = np.where(valid[held].any(axis=1), z[held, last], np.nan)
         return out
+
+    def _gain(self, mask: np.ndarray, group: int) -> np.ndarray:
+        """The position gain (L,) of window ``mask`` (L,) of gain group ``group``, NaN where it does not determine the
+        state (:meth:`FIRFilter.observable`); the back end's cached gain (``_lookup``), kept in ``gains``."""
+        key = (self.group_keys[group], mask.tobytes())
+        gain = self.gains.get(key)
+        if gain is None:
+            if len(self.gains) >= GAIN_KINDS:
+                self.gains.clear()
+            gp = {k: v[group:group + 1] for k, v in self.gparams.items()}
+            gain = np.full(len(mask), np.nan)
+            if self.f.observable(mask[None], gp)[0]:
+                gain = self.f._lookup(mask[None], gp)[0, 0]
+            self.gains[key] = gain
+        return gain
