@@ -66,9 +66,15 @@ class OnlineBoxKF:
         self.kf.predict_state(X, self._variances()[1])
         return self._boxes(X)
 
-    def update(self, boxes: np.ndarray) -> np.ndarray:
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         """One frame: every track predicts, those with a detection (a row of ``boxes`` (n, 4); NaN rows: none)
-        update; returns the estimates (n, 4)."""
+        update; returns the estimates (n, 4); then the tracks ``births`` (k, 4) start (:meth:`start`)."""
+        estimates = self._update(boxes)
+        if births is not None and len(births):
+            self.start(births)
+        return estimates
+
+    def _update(self, boxes: np.ndarray) -> np.ndarray:
         boxes = np.asarray(boxes, dtype=float)
         if boxes.shape != (self.n, M):
             raise ValueError(f"boxes has shape {boxes.shape}; allowed ({self.n}, {M}): one row per live track")

@@ -36,7 +36,7 @@ import numpy as np
 
 from bboxtune.filters.base import AxisCarry, Filter, measurement_history
 from bboxtune.filters.fir_core import FIRFilter
-from bboxtune.filters.validation import check_measurements, check_values
+from bboxtune.filters.validation import check_values
 
 M = 4  # measured coordinates of a box: cx, cy, w, h
 GAIN_KINDS = 4096  # window kinds (gain parameters, missing pattern) whose gains an OnlineFIR keeps
@@ -59,6 +59,15 @@ def check_rows(boxes: np.ndarray, n: int) -> np.ndarray:
     boxes = np.asarray(boxes, dtype=float)
     if boxes.shape != (n, M):
         raise ValueError(f"boxes has shape {boxes.shape}; allowed ({n}, {M}): one row per live track")
+    check_values("boxes", boxes)
+    return boxes
+
+
+def check_births(boxes: np.ndarray) -> np.ndarray:
+    """The first detections of new tracks as a float (k, 4) array without NaN, else a ValueError naming them."""
+    boxes = np.asarray(boxes, dtype=float)
+    if boxes.ndim != 2 or boxes.shape[1] != M or np.isnan(boxes).any():
+        raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
     check_values("boxes", boxes)
     return boxes
 
@@ -140,24 +149,33 @@ class OnlineKalman(_PerTrack):
         x = self._carry.x
         return (F[0, 0] * x[:, 0] + F[0, 1] * x[:, 1]).reshape(self._n, M)
 
-    def update(self, boxes: np.ndarray) -> np.ndarray:
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         """One frame: every track predicts, those with a detection (a row of ``boxes`` (n, 4); NaN rows: none)
-        update; returns the estimates (n, 4)."""
+        update; returns the estimates (n, 4). ``births`` (k, 4): tracks that start in this frame, as :meth:`start`
+        after the update would start them, in the same call of the back end (their channels have not started:
+        the back end starts them as a run without a carry does)."""
         boxes = check_rows(boxes, self._n)
+        n = self._n
+        k = 0 if births is None else len(births)
+        if k:
+            births = check_births(cast(np.ndarray, births))
+            self._add_params(k, None)
+            fresh = not_started(k * M, self.f.camera_coordinates * k)
+            self._carry = fresh if self._carry is None else _join(self._carry, fresh)
+            self._n += k
+            boxes = np.concatenate([boxes, births])
         if self._n == 0:
             return np.empty((0, M))
         positions, self._carry = self._step(boxes.reshape(-1, 1))
-        return positions.reshape(self._n, M)
+        return positions[:n * M].reshape(n, M)
 
     def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None:
         """Start k tracks at their first detections ``boxes`` (k, 4) (appended as the last k rows), with ``params``
         (``{name: scalar or (k,)}``; default: the template's)."""
-        boxes = np.asarray(boxes, dtype=float)
+        boxes = check_births(boxes)
         k = len(boxes)
         if k == 0:
             return
-        if boxes.ndim != 2 or boxes.shape[1] != M or np.isnan(boxes).any():
-            raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
         self._add_params(k, params)
         z, run_params = boxes.reshape(-1, 1), {**self._channel_params()}
         run_params.update({name: v[-k * M:] for name, v in run_params.items() if name in self.params})
@@ -174,6 +192,15 @@ class OnlineKalman(_PerTrack):
         if self._carry is not None:
             self._carry = None if len(index) == 0 else _take(self._carry, channels, index)
         self._keep_params(index)
+
+
+def not_started(channels: int, camera_channels: int) -> AxisCarry:
+    """The carry of ``channels`` channels that have not started (no measurement yet: a back end starts them as a run
+    without a carry does), ``camera_channels`` of them with camera states."""
+    nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
+    return AxisCarry(x=nan(channels, 2), P=nan(channels, 2, 2), c=nan(camera_channels) if camera_channels else None,
+                     P_c=nan(camera_channels, 3) if camera_channels else None, y_last=nan(channels),
+                     measured=np.zeros(channels, bool), missed=np.zeros(channels, np.int64))
 
 
 def next_history(z: np.ndarray, start: AxisCarry | None) -> dict[str, np.ndarray]:
@@ -240,27 +267,28 @@ class OnlineFIR(_PerTrack):
             return np.empty((0, M))
         return self._estimate(np.full((self._n, M), np.nan))
 
-    def update(self, boxes: np.ndarray) -> np.ndarray:
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         """One frame: each track's detection (a row of ``boxes`` (n, 4); NaN rows: none) joins its history; returns
-        the estimates (n, 4)."""
+        the estimates (n, 4); then the tracks ``births`` (k, 4) start (:meth:`start`)."""
         boxes = check_rows(boxes, self._n)
         if self._n == 0:
+            if births is not None:
+                self.start(births)
             return np.empty((0, M))
         estimates = self._estimate(boxes)
         self._length += 1
+        if births is not None:
+            self.start(births)
         return estimates
 
     def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None:
         """Start k tracks at their first detections ``boxes`` (k, 4) (appended as the last k rows; their history is
         that frame, led by missing frames back to the oldest track's first), with ``params`` (``{name: scalar or
         (k,)}``; default: the template's)."""
-        boxes = np.asarray(boxes, dtype=float)
+        boxes = check_births(boxes)
         k = len(boxes)
         if k == 0:
             return
-        if boxes.ndim != 2 or boxes.shape[1] != M or np.isnan(boxes).any():
-            raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
-        check_measurements(boxes[:, None], M)
         self._add_params(k, params)
         self._length = max(self._length, 1)
         fresh = np.full((k, self._y.shape[1], M), np.nan)

@@ -42,7 +42,7 @@ class OnlineFilter(Protocol):
     @property
     def n(self) -> int: ...
     def predict(self) -> np.ndarray: ...
-    def update(self, boxes: np.ndarray) -> np.ndarray: ...
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray: ...
     def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None: ...
     def keep(self, index: np.ndarray) -> None: ...
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None: ...
@@ -86,13 +86,16 @@ class CarryFilter:
             return np.empty((0, M))
         return self._filter().positions_from(np.full((self._n, 1, M), np.nan), self._carry)[0][:, 0]
 
-    def update(self, boxes: np.ndarray) -> np.ndarray:
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         if boxes.shape != (self._n, M):
             raise ValueError(f"boxes has shape {boxes.shape}; allowed ({self._n}, {M}): one row per live track")
-        if self._n == 0:
-            return np.empty((0, M))
-        est, self._carry = self._filter().positions_from(boxes[:, None], self._carry)
-        return est[:, 0]
+        out = np.empty((0, M))
+        if self._n:
+            est, self._carry = self._filter().positions_from(boxes[:, None], self._carry)
+            out = est[:, 0]
+        if births is not None:
+            self.start(births)
+        return out
 
     def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None:
         k = len(boxes)
@@ -142,10 +145,12 @@ class FilterBank:
         """(n, 4) xywh: where each track is expected in the next frame (no state changes)."""
         return cxcywh_to_xywh(self.engine.predict())
 
-    def update(self, boxes: np.ndarray) -> np.ndarray:
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         """Advance every track by one frame with its detection ``boxes`` (n, 4) xywh, a NaN row for a track without
-        one; returns the estimates (n, 4) xywh."""
-        return cxcywh_to_xywh(self.engine.update(xywh_to_cxcywh(boxes)))
+        one; returns the estimates (n, 4) xywh. ``births`` (k, 4) xywh: tracks that start in this frame (as
+        :meth:`start` after the update; the Kalman back ends start them in the same call)."""
+        born = None if births is None or len(births) == 0 else xywh_to_cxcywh(births)
+        return cxcywh_to_xywh(self.engine.update(xywh_to_cxcywh(boxes), born))
 
     def start(self, boxes: np.ndarray) -> np.ndarray:
         """Start k tracks at their first detections ``boxes`` (k, 4) xywh (appended as rows n … n + k − 1);

@@ -50,14 +50,15 @@ def scenario(first: Any, second: Any, retune: dict[str, Any], seed: int = 0, fra
         boxes[rng.random(n) < 0.3] = np.nan  # tracks without a detection
         if t == 40:
             boxes[:] = np.nan  # a frame without any
+        born = int(rng.integers(0, 3)) if t not in (30, 31) else 0
+        new = centre + rng.normal(0, [20.0, 20.0, 2.0, 4.0], (born, 4))
+        joint = t % 2 == 0  # the new tracks start in the update's call (as the tracker does), else after it
         for e, out in zip((first, second), outs, strict=True):
-            out.append(e.update(boxes))
+            out.append(e.update(boxes, new if joint else None))
         if t == 25 and n > 2 and retune:
             for e in (first, second):
                 e.set_params(np.array([0, n - 1]), retune)
-        born = int(rng.integers(0, 3)) if t not in (30, 31) else 0
-        if born:
-            new = centre + rng.normal(0, [20.0, 20.0, 2.0, 4.0], (born, 4))
+        if born and not joint:
             for e in (first, second):
                 e.start(new)
         if t == 31:
