@@ -245,41 +245,74 @@ class OnlineFIR(_PerTrack):
         self._length = 0  # frames of history (0: none yet, as after every track ended)
         self._windows: WindowGroups | None = None  # the live tracks' gain groups (when their parameters change)
         self._gains: dict[tuple, np.ndarray] = {}  # WindowGroups.gains
+        self._predicted: np.ndarray | None = None  # (n, 4) the next frame's estimates without detections, if known
+        self._predicted_reach = 0  # the reach they were computed with
 
     def _changed(self) -> None:
         super()._changed()
-        self._windows = None
+        self._windows = self._predicted = None
 
-    def _estimate(self, frame: np.ndarray) -> np.ndarray:
-        """Positions (n, 4) at a next frame measured ``frame`` (n, 4), from the history (which is not extended)."""
-        if self._length == self._y.shape[1]:
-            self._y = np.concatenate([self._y, np.full_like(self._y, np.nan)], axis=1)
+    def _groups(self) -> WindowGroups:
         if self._windows is None:
             self._windows = WindowGroups(cast(FIRFilter, self.f), self._channel_params(), self._gains)
-        self._y[:, self._length] = frame
-        lead = min(self._length, self._windows.reach)
-        span = self._y[:, self._length - lead:self._length + 1].transpose(0, 2, 1).reshape(self._n * M, lead + 1)
-        return self._windows.newest_positions(span).reshape(self._n, M)
+        return self._windows
+
+    def _reach(self, rows: slice | np.ndarray) -> int:
+        """History frames a continued run of the tracks ``rows`` reads (:func:`bboxtune.filters.history.continue_span`)."""
+        return int(np.max(self.params["horizon"][rows])) + 1
+
+    def _span(self, rows: int, last: int, reach: int) -> np.ndarray:
+        """Channels (rows · 4, S) of the first ``rows`` tracks: frame ``last`` led by the history frames before it that a
+        continued run reads (at most ``reach``)."""
+        lead = min(last, reach)
+        return self._y[:rows, last - lead:last + 1].transpose(0, 2, 1).reshape(rows * M, lead + 1)
+
+    def _grow(self) -> None:
+        """Room for two more frames in the buffer (the next one and the one after)."""
+        if self._length + 2 > self._y.shape[1]:
+            self._y = np.concatenate([self._y, np.full_like(self._y, np.nan)], axis=1)
 
     def predict(self) -> np.ndarray:
-        """(n, 4) the estimate of every track at the next frame without a detection (the history is not changed)."""
+        """(n, 4) the estimate of every track at the next frame without a detection (the history is not changed);
+        computed with the last update where it could be (the same frames, parameters and gains)."""
         if self._n == 0:
             return np.empty((0, M))
-        return self._estimate(np.full((self._n, M), np.nan))
+        if self._predicted is None:
+            self._grow()
+            self._y[:, self._length] = np.nan
+            span = self._span(self._n, self._length, self._reach(slice(None)))
+            self._predicted = self._groups().newest_positions(span).reshape(self._n, M)
+            self._predicted_reach = self._reach(slice(None))
+        return self._predicted.copy()
 
     def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         """One frame: each track's detection (a row of ``boxes`` (n, 4); NaN rows: none) joins its history; returns
-        the estimates (n, 4); then the tracks ``births`` (k, 4) start (:meth:`start`)."""
+        the estimates (n, 4); then the tracks ``births`` (k, 4) start (:meth:`start`). The next frame's predictions
+        are computed in the same pass where their window spans as many frames as the update's (from the
+        ``reach``-th frame of the history on)."""
         boxes = check_rows(boxes, self._n)
-        if self._n == 0:
+        n_old, last = self._n, self._length
+        if n_old == 0:
             if births is not None:
                 self.start(births)
             return np.empty((0, M))
-        estimates = self._estimate(boxes)
+        self._grow()
+        self._y[:, last] = boxes
+        reach = self._reach(slice(None))
         self._length += 1
         if births is not None:
             self.start(births)
-        return estimates
+        windows, n, reach_next = self._groups(), self._n, self._reach(slice(None))
+        self._y[:, last + 1] = np.nan  # the next frame, without detections
+        now, ahead = self._span(n_old, last, reach), self._span(n, last + 1, reach_next)
+        old = np.arange(n_old * M)
+        if now.shape[1] == ahead.shape[1]:
+            both = windows.newest_positions(np.concatenate([now, ahead]), np.concatenate([old, np.arange(n * M)]))
+            estimates, predicted = both[:n_old * M], both[n_old * M:]
+        else:
+            estimates, predicted = windows.newest_positions(now, old), windows.newest_positions(ahead)
+        self._predicted, self._predicted_reach = predicted.reshape(n, M), reach_next
+        return estimates.reshape(n_old, M)
 
     def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None:
         """Start k tracks at their first detections ``boxes`` (k, 4) (appended as the last k rows; their history is
@@ -299,10 +332,14 @@ class OnlineFIR(_PerTrack):
     def keep(self, index: np.ndarray) -> None:
         """Keep only the tracks ``index`` (an int array), in that order (the history starts over when none is kept)."""
         index = np.asarray(index, dtype=np.int64)
+        predicted = self._predicted
+        if predicted is not None and (len(index) == 0 or self._reach(index) != self._predicted_reach):
+            predicted = None  # fewer frames in the span now
         self._y = self._y[index]
         if len(index) == 0:
             self._length = 0
         self._keep_params(index)
+        self._predicted = None if predicted is None else predicted[index]
 
 
 class WindowGroups:
@@ -315,30 +352,30 @@ class WindowGroups:
         self.f = f._in_frames if f.model.tau != 1.0 else f  # the gains of the frame-unit twin, as _run_axes uses
         self.group, self.gparams = self.f._groups(f.params_in_frames(params, f.model.tau))
         self.length = (self.gparams["horizon"] + f.EXTRA_SAMPLES)[self.group]  # (C,) full window of each channel
-        self.reach = int(np.max(params["horizon"])) + 1  # history frames a continued run reads (continue_span)
         self.group_keys = list(zip(*(v.tolist() for v in self.gparams.values()), strict=True))
         self.gains = gains
 
-    def newest_positions(self, z: np.ndarray) -> np.ndarray:
-        """The position estimate (C,) at the last frame of channels ``z`` (C, S) (frame 0 = each one's first): what
-        ``f.positions`` gives there — the full window, the start-up window (frames 0 … S − 1) or the window with its
-        missing samples dropped, by the same gains; the latest measurement where the window does not determine
-        the state (NaN before any)."""
+    def newest_positions(self, z: np.ndarray, channels: np.ndarray | None = None) -> np.ndarray:
+        """The position estimate (C,) at the last frame of channels ``z`` (C, S) (frame 0 = each one's first; of the
+        channels ``channels`` (C,), default all): what ``f.positions`` gives there — the full window, the start-up
+        window (frames 0 … S − 1) or the window with its missing samples dropped, by the same gains; the latest
+        measurement where the window does not determine the state (NaN before any)."""
         C, S = z.shape
         valid = ~np.isnan(z)
-        windows = np.minimum(self.length, S)  # shorter than the channel's window: start-up
+        group = self.group if channels is None else self.group[channels]
+        windows = np.minimum(self.length if channels is None else self.length[channels], S)  # shorter: start-up
         out = np.empty(C)
         n_groups = len(self.group_keys)
         for L in np.unique(windows).tolist():
             rows = np.flatnonzero(windows == L) if windows[0] != L or not (windows == L).all() else np.arange(C)
             masks = valid[rows, S - L:]
             if L + n_groups.bit_length() > 62:  # a window kind per (group, mask) in 63 bits: else pack the masks
-                codes = np.unique(np.column_stack([self.group[rows], np.packbits(masks, axis=1)]), axis=0,
+                codes = np.unique(np.column_stack([group[rows], np.packbits(masks, axis=1)]), axis=0,
                                   return_inverse=True)[1].reshape(-1)
             else:
-                codes = (masks.astype(np.int64) @ (np.int64(1) << np.arange(L, dtype=np.int64))) * n_groups + self.group[rows]
+                codes = (masks.astype(np.int64) @ (np.int64(1) << np.arange(L, dtype=np.int64))) * n_groups + group[rows]
             unique, first, kind = np.unique(codes, return_index=True, return_inverse=True)
-            W = np.stack([self._gain(masks[i], int(self.group[rows[i]])) for i in first.tolist()])
+            W = np.stack([self._gain(masks[i], int(group[rows[i]])) for i in first.tolist()])
             out[rows] = np.einsum("pl,pl->p", W[kind.reshape(-1)], np.where(masks, z[rows, S - L:], 0.0))
             failed = ~np.isnan(W[kind.reshape(-1), -1]) & np.isnan(out[rows])
             if failed.any():
