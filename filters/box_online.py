@@ -19,7 +19,7 @@ The steps are the batch recursion's own (:meth:`BoxKF.predict_state`, :func:`bbo
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 
@@ -38,6 +38,7 @@ class OnlineBoxKF:
         self.X = np.empty((5, M, 0))  # [p, v, P01, P00, P11] per coordinate and track (bboxtune.filters.bytetrack_kf)
         self.params: dict[str, np.ndarray] = {name: np.empty(0) for name in kf.PER_TRACK}
         self._noise: tuple[_Variance, _Variance, _Variance] | None = None  # (P₀, Q, R) of the live tracks
+        self._stock: tuple[_Variance, _Variance, _Variance] | None = None  # those of one track with kf's parameters
 
     @property
     def n(self) -> int:
@@ -96,29 +97,35 @@ class OnlineBoxKF:
         k = len(boxes)
         given = type(self.kf)(self.kf.model, **{**self.kf.params, **params}).params if params else self.kf.params
         fresh = {name: np.broadcast_to(given[name], (k,)) for name in self.params}
-        noise = self._variances_of(fresh, k)
+        if params:
+            noise = self._variances_of(fresh, k)
+        else:  # the template's noise, once per filter
+            if self._stock is None:
+                self._stock = self._variances_of({name: np.broadcast_to(given[name], (1,)) for name in self.params}, 1)
+            noise = _columns(self._stock, np.zeros(k, dtype=np.int64))
         X = np.full((5, M, k), np.nan)
         initiate(X, self.kf._measure(boxes.T[None])[0], noise[0], np.arange(k))
         self.X = np.concatenate([self.X, X], axis=2)
         self.params = {name: np.concatenate([self.params[name], fresh[name]]) for name in self.params}
         if self._noise is not None:  # the live tracks' noise, then the new ones'
-            self._noise = cast(tuple[_Variance, _Variance, _Variance], tuple(
-                _Variance((np.concatenate([old.slope, new.slope], -1), np.concatenate([old.offset, new.offset], -1)),
-                          new.slope.shape[:-1] + (self.n,)) for old, new in zip(self._noise, noise, strict=True)))
+            self._noise = (self._noise[0].join(noise[0]), self._noise[1].join(noise[1]), self._noise[2].join(noise[2]))
 
     def keep(self, index: np.ndarray) -> None:
         """Keep only the tracks ``index`` (an int array), in that order."""
         self.X = self.X[:, :, index]
         self.params = {name: values[index] for name, values in self.params.items()}
         if self._noise is not None:
-            self._noise = cast(tuple[_Variance, _Variance, _Variance], tuple(
-                _Variance((v.slope[..., index], v.offset[..., index]), v.slope.shape[:-1] + (len(index),))
-                for v in self._noise))
+            self._noise = _columns(self._noise, index)
 
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
         """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on."""
         self.params = track_params(self.kf, self.params, rows, params)
         self._noise = None
+
+
+def _columns(noise: tuple[_Variance, _Variance, _Variance], index: np.ndarray) -> tuple[_Variance, _Variance, _Variance]:
+    """(P₀, Q, R) of the tracks ``index``."""
+    return noise[0].take(index), noise[1].take(index), noise[2].take(index)
 
 
 def track_params(f: Filter, current: Mapping[str, np.ndarray], rows: np.ndarray, params: Mapping[str, Any]

@@ -35,23 +35,12 @@ from typing import Any, cast
 import numpy as np
 
 from bboxtune.filters.base import AxisCarry, Filter, measurement_history
+from bboxtune.filters.box_online import track_params
 from bboxtune.filters.fir_core import FIRFilter
 from bboxtune.filters.validation import check_values
 
 M = 4  # measured coordinates of a box: cx, cy, w, h
 GAIN_KINDS = 4096  # window kinds (gain parameters, missing pattern) whose gains an OnlineFIR keeps
-
-
-def track_params(f: Filter, current: Mapping[str, np.ndarray], rows: np.ndarray, params: Mapping[str, Any]
-                 ) -> dict[str, np.ndarray]:
-    """Per-track parameters ``current`` (``{name: (n,)}``) with those of the tracks ``rows`` replaced by ``params``
-    (``{name: scalar or (len(rows),)}``), checked by ``f``'s class as ``filters.make`` checks them."""
-    given = type(f)(f.model, **{**f.params, **params}).params
-    updated = dict(current)
-    for name in params:
-        updated[name] = current[name].copy()
-        updated[name][rows] = given[name]
-    return updated
 
 
 def check_rows(boxes: np.ndarray, n: int) -> np.ndarray:
