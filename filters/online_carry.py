@@ -350,30 +350,33 @@ class WindowGroups:
         window (frames 0 … S − 1) or the window with its missing samples dropped, by the same gains; the latest
         measurement where the window does not determine the state (NaN before any)."""
         C, S = z.shape
-        valid = ~np.isnan(z)
         group = self.group if channels is None else self.group[channels]
-        windows = np.minimum(self.length if channels is None else self.length[channels], S)  # shorter: start-up
-        out = np.empty(C)
+        lengths = np.minimum(self.length if channels is None else self.length[channels], S)  # shorter: start-up
+        L = int(lengths.max())
+        window = z[:, S - L:]
+        masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])  # right-aligned windows, their samples
         n_groups = len(self.group_keys)
-        for L in np.unique(windows).tolist():
-            rows = np.flatnonzero(windows == L) if windows[0] != L or not (windows == L).all() else np.arange(C)
-            masks = valid[rows, S - L:]
-            if L + n_groups.bit_length() > 62:  # a window kind per (group, mask) in 63 bits: else pack the masks
-                codes = np.unique(np.column_stack([group[rows], np.packbits(masks, axis=1)]), axis=0,
-                                  return_inverse=True)[1].reshape(-1)
-            else:
-                codes = (masks.astype(np.int64) @ (np.int64(1) << np.arange(L, dtype=np.int64))) * n_groups + group[rows]
-            unique, first, kind = np.unique(codes, return_index=True, return_inverse=True)
-            W = np.stack([self._gain(masks[i], int(group[rows[i]])) for i in first.tolist()])
-            out[rows] = np.einsum("pl,pl->p", W[kind.reshape(-1)], np.where(masks, z[rows, S - L:], 0.0))
-            failed = ~np.isnan(W[kind.reshape(-1), -1]) & np.isnan(out[rows])
-            if failed.any():
-                raise FloatingPointError(f"{self.f.name}: no finite estimate for channel {rows[np.argmax(failed)]} "
-                                         "although its window determines the state — please report this input")
+        if 2 * L + n_groups.bit_length() <= 62:  # a window kind per (group, length, mask) in 63 bits
+            bits = np.int64(1) << np.arange(L, dtype=np.int64)
+            codes = ((masks @ bits) + (lengths.astype(np.int64) << L)) * n_groups + group
+        else:
+            codes = np.unique(np.column_stack([group, lengths, np.packbits(masks, axis=1)]), axis=0,
+                              return_inverse=True)[1].reshape(-1)
+        unique, first, kind = np.unique(codes, return_index=True, return_inverse=True)
+        W = np.zeros((len(unique), L))
+        for u, i in enumerate(first.tolist()):
+            W[u, L - lengths[i]:] = self._gain(masks[i, L - lengths[i]:], int(group[i]))
+        W = W[kind.reshape(-1)]
+        out = np.einsum("pl,pl->p", W, np.where(masks, window, 0.0))
+        failed = ~np.isnan(W[:, -1]) & np.isnan(out)
+        if failed.any():
+            raise FloatingPointError(f"{self.f.name}: no finite estimate for channel {np.argmax(failed)} although its "
+                                     "window determines the state — please report this input")
         held = np.isnan(out)  # undetermined windows: the latest measurement of the span (NaN before any)
         if held.any():
-            last = S - 1 - np.argmax(valid[held, ::-1], axis=1)
-            out[held] = np.where(valid[held].any(axis=1), z[held, last], np.nan)
+            valid = ~np.isnan(z[held])
+            last = S - 1 - np.argmax(valid[:, ::-1], axis=1)
+            out[held] = np.where(valid.any(axis=1), z[held, last], np.nan)
         return out
 
     def _gain(self, mask: np.ndarray, group: int) -> np.ndarray:

@@ -25,7 +25,6 @@ from typing import Any, Protocol
 import numpy as np
 
 from bboxtune import filters
-from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.filters.base import Carry
 from bboxtune.filters.box_online import OnlineBoxKF, track_params
 from bboxtune.filters.bytetrack_kf import BoxKF
@@ -119,6 +118,23 @@ class CarryFilter:
         self.params = track_params(self.f, self.params, rows, params)
 
 
+def _xywh(boxes: np.ndarray) -> np.ndarray:
+    """:func:`bboxtune.envs.data.boxes.cxcywh_to_xywh` of an (n, 4) float array, without its checks (every frame)."""
+    out = boxes.copy()
+    out[:, :2] -= 0.5 * boxes[:, 2:]
+    return out
+
+
+def _cxcywh(boxes: np.ndarray) -> np.ndarray:
+    """:func:`bboxtune.envs.data.boxes.xywh_to_cxcywh` of an (n, 4) array, without its checks (every frame)."""
+    boxes = np.asarray(boxes, dtype=float)
+    if boxes.ndim != 2 or boxes.shape[1] != M:
+        raise ValueError(f"boxes has shape {boxes.shape}; allowed (n, {M}) xywh boxes")
+    out = boxes.copy()
+    out[:, :2] += 0.5 * boxes[:, 2:]
+    return out
+
+
 class FilterBank:
     """The filters of the live tracks (row i = the i-th track the tracker keeps): back end ``backend`` at frame
     interval ``tau`` (s) with ``params`` (``{name: value}``; the back end's defaults where not given) for new tracks.
@@ -143,20 +159,20 @@ class FilterBank:
 
     def predict(self) -> np.ndarray:
         """(n, 4) xywh: where each track is expected in the next frame (no state changes)."""
-        return cxcywh_to_xywh(self.engine.predict())
+        return _xywh(self.engine.predict())
 
     def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         """Advance every track by one frame with its detection ``boxes`` (n, 4) xywh, a NaN row for a track without
         one; returns the estimates (n, 4) xywh. ``births`` (k, 4) xywh: tracks that start in this frame (as
         :meth:`start` after the update; the Kalman back ends start them in the same call)."""
-        born = None if births is None or len(births) == 0 else xywh_to_cxcywh(births)
-        return cxcywh_to_xywh(self.engine.update(xywh_to_cxcywh(boxes), born))
+        born = None if births is None or len(births) == 0 else _cxcywh(births)
+        return _xywh(self.engine.update(_cxcywh(boxes), born))
 
     def start(self, boxes: np.ndarray) -> np.ndarray:
         """Start k tracks at their first detections ``boxes`` (k, 4) xywh (appended as rows n … n + k − 1);
         returns their boxes."""
         if len(boxes):
-            self.engine.start(xywh_to_cxcywh(boxes))
+            self.engine.start(_cxcywh(boxes))
         return np.asarray(boxes, dtype=float).reshape(-1, M).copy()
 
     def keep(self, index: np.ndarray) -> None:

@@ -143,7 +143,6 @@ class Tracker:
         matched_score[matched_track] = scores[matched_det]
         if self.retune is not None:
             self.retune.retune(self.bank)
-        if self.retune is not None:
             self.retune.start(boxes[new])
         tracks.append(np.arange(self._next_id, self._next_id + len(new), dtype=np.int64))
         self._next_id += len(new)
