@@ -76,7 +76,6 @@ import numpy as np
 
 from bboxtune.filters import jit, kalman_kernels
 from bboxtune.filters.base import AxisCarry, Filter
-from bboxtune.filters.kf import TABLES
 from bboxtune.filters.kalman_core import (
     UPDATE_Z,
     FramePrior,
@@ -87,6 +86,7 @@ from bboxtune.filters.kalman_core import (
     frame_kinds,
     plain_tables,
 )
+from bboxtune.filters.kf import TABLES
 from bboxtune.filters.model import StateSpaceModel
 from bboxtune.filters.validation import check_psi, check_sigma
 

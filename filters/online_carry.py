@@ -205,7 +205,8 @@ def next_history(z: np.ndarray, start: AxisCarry | None) -> dict[str, np.ndarray
 def _join(first: AxisCarry, second: AxisCarry) -> AxisCarry:
     """The channels of ``first`` followed by those of ``second``."""
     parts = {name: (getattr(first, name), getattr(second, name)) for name in AxisCarry.__dataclass_fields__}
-    return AxisCarry(**{name: None if a is None else np.concatenate([a, b]) for name, (a, b) in parts.items()})
+    joined: dict[str, Any] = {name: None if a is None else np.concatenate([a, b]) for name, (a, b) in parts.items()}
+    return AxisCarry(**joined)
 
 
 def _take(carry: AxisCarry, channels: np.ndarray, tracks: np.ndarray) -> AxisCarry:
