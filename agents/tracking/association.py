@@ -16,7 +16,6 @@ from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment
 
 
-
 def iou_matrix(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """(n, m) IoU of every box of ``a`` (n, 4) with every box of ``b`` (m, 4), xywh px; 0 where either is NaN.
 
