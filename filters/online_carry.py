@@ -29,6 +29,7 @@ per track; new tracks start with the template filter's.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from typing import Any, cast
 
@@ -237,6 +238,7 @@ class OnlineFIR(_PerTrack):
         self._gains: dict[tuple, np.ndarray] = {}  # WindowGroups.gains
         self._predicted: np.ndarray | None = None  # (n, 4) the next frame's estimates without detections, if known
         self._predicted_reach = 0  # the reach they were computed with
+        self._template: tuple[tuple, int] | None = None  # template_window(f), once
 
     def _changed(self) -> None:
         super()._changed()
@@ -312,7 +314,12 @@ class OnlineFIR(_PerTrack):
         k = len(boxes)
         if k == 0:
             return
+        windows = self._windows
         self._add_params(k, params)
+        if windows is not None and not params:  # the template's parameters: the live tracks' groups, extended
+            if self._template is None:
+                self._template = template_window(cast(FIRFilter, self.f))
+            self._windows = windows.extended(k * M, *self._template)
         self._length = max(self._length, 1)
         fresh = np.full((k, self._y.shape[1], M), np.nan)
         fresh[:, self._length - 1] = boxes
@@ -344,6 +351,17 @@ class WindowGroups:
         self.length = (self.gparams["horizon"] + f.EXTRA_SAMPLES)[self.group]  # (C,) full window of each channel
         self.group_keys = list(zip(*(v.tolist() for v in self.gparams.values()), strict=True))
         self.gains = gains
+
+    def extended(self, channels: int, key: tuple, length: int) -> WindowGroups | None:
+        """These windows and ``channels`` more of gain parameters ``key`` (frame units) and window ``length``, or None
+        where ``key`` is not one of the groups (then build the groups anew)."""
+        if key not in self.group_keys:
+            return None
+        out = copy.copy(self)
+        out.group = np.concatenate([self.group, np.full(channels, self.group_keys.index(key), dtype=self.group.dtype)])
+        out.length = np.concatenate([self.length, np.full(channels, length, dtype=self.length.dtype)])
+        return out
+
 
     def newest_positions(self, z: np.ndarray, channels: np.ndarray | None = None) -> np.ndarray:
         """The position estimate (C,) at the last frame of channels ``z`` (C, S) (frame 0 = each one's first; of the
@@ -394,3 +412,12 @@ class WindowGroups:
                 gain = self.f._lookup(mask[None], gp)[0, 0]
             self.gains[key] = gain
         return gain
+
+
+def template_window(f: FIRFilter) -> tuple[tuple, int]:
+    """The gain parameters (frame units, as :class:`WindowGroups` keys them) and the window length of ``f``'s own
+    parameters."""
+    one = {k: np.atleast_1d(np.asarray(f.params[k], dtype=float)) for k in f.PER_TRACK}
+    twin = f._in_frames if f.model.tau != 1.0 else f
+    _, gparams = twin._groups(f.params_in_frames(channel_params(f, one), f.model.tau))
+    return next(zip(*(v.tolist() for v in gparams.values()), strict=True)), int(gparams["horizon"][0]) + f.EXTRA_SAMPLES
