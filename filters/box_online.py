@@ -38,6 +38,7 @@ class OnlineBoxKF:
         self.X = np.empty((5, M, 0))  # [p, v, P01, P00, P11] per coordinate and track (bboxtune.filters.bytetrack_kf)
         self.params: dict[str, np.ndarray] = {name: np.empty(0) for name in kf.PER_TRACK}
         self._noise: tuple[_Variance, _Variance, _Variance] | None = None  # (P₀, Q, R) of the live tracks
+        self._stock: tuple[_Variance, _Variance, _Variance] | None = None  # those of one track with kf's parameters
 
     @property
     def n(self) -> int:
@@ -46,10 +47,14 @@ class OnlineBoxKF:
 
     def _variances(self) -> tuple[_Variance, _Variance, _Variance]:
         if self._noise is None:
-            noise, n = self.kf._noise(self.params), self.n
-            self._noise = (_Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n)),
-                           _Variance(noise.measurement, (M, n)))
+            self._noise = self._variances_of(self.params, self.n)
         return self._noise
+
+    def _variances_of(self, params: Mapping[str, np.ndarray], n: int) -> tuple[_Variance, _Variance, _Variance]:
+        """(P₀, Q, R) of n tracks with ``params`` (``{name: (n,)}``)."""
+        noise = self.kf._noise(dict(params))
+        return (_Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n)),
+                _Variance(noise.measurement, (M, n)))
 
     def _boxes(self, X: np.ndarray) -> np.ndarray:
         boxes = X[0].T.copy()
@@ -62,9 +67,15 @@ class OnlineBoxKF:
         self.kf.predict_state(X, self._variances()[1])
         return self._boxes(X)
 
-    def update(self, boxes: np.ndarray) -> np.ndarray:
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         """One frame: every track predicts, those with a detection (a row of ``boxes`` (n, 4); NaN rows: none)
-        update; returns the estimates (n, 4)."""
+        update; returns the estimates (n, 4); then the tracks ``births`` (k, 4) start (:meth:`start`)."""
+        estimates = self._update(boxes)
+        if births is not None and len(births):
+            self.start(births)
+        return estimates
+
+    def _update(self, boxes: np.ndarray) -> np.ndarray:
         boxes = np.asarray(boxes, dtype=float)
         if boxes.shape != (self.n, M):
             raise ValueError(f"boxes has shape {boxes.shape}; allowed ({self.n}, {M}): one row per live track")
@@ -84,24 +95,37 @@ class OnlineBoxKF:
             raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
         check_boxes(boxes[None])
         k = len(boxes)
-        given = type(self.kf)(self.kf.model, **{**self.kf.params, **(params or {})}).params  # validated
-        self.params = {name: np.concatenate([self.params[name], np.broadcast_to(given[name], (k,))])
-                       for name in self.params}
-        self.X = np.concatenate([self.X, np.full((5, M, k), np.nan)], axis=2)
-        self._noise = None
-        rows = np.arange(self.n - k, self.n)
-        initiate(self.X, self.kf._measure(boxes.T[None])[0], self._variances()[0], rows)
+        given = type(self.kf)(self.kf.model, **{**self.kf.params, **params}).params if params else self.kf.params
+        fresh = {name: np.broadcast_to(given[name], (k,)) for name in self.params}
+        if params:
+            noise = self._variances_of(fresh, k)
+        else:  # the template's noise, once per filter
+            if self._stock is None:
+                self._stock = self._variances_of({name: np.broadcast_to(given[name], (1,)) for name in self.params}, 1)
+            noise = _columns(self._stock, np.zeros(k, dtype=np.int64))
+        X = np.full((5, M, k), np.nan)
+        initiate(X, self.kf._measure(boxes.T[None])[0], noise[0], np.arange(k))
+        self.X = np.concatenate([self.X, X], axis=2)
+        self.params = {name: np.concatenate([self.params[name], fresh[name]]) for name in self.params}
+        if self._noise is not None:  # the live tracks' noise, then the new ones'
+            self._noise = (self._noise[0].join(noise[0]), self._noise[1].join(noise[1]), self._noise[2].join(noise[2]))
 
     def keep(self, index: np.ndarray) -> None:
         """Keep only the tracks ``index`` (an int array), in that order."""
         self.X = self.X[:, :, index]
         self.params = {name: values[index] for name, values in self.params.items()}
-        self._noise = None
+        if self._noise is not None:
+            self._noise = _columns(self._noise, index)
 
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
         """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on."""
         self.params = track_params(self.kf, self.params, rows, params)
         self._noise = None
+
+
+def _columns(noise: tuple[_Variance, _Variance, _Variance], index: np.ndarray) -> tuple[_Variance, _Variance, _Variance]:
+    """(P₀, Q, R) of the tracks ``index``."""
+    return noise[0].take(index), noise[1].take(index), noise[2].take(index)
 
 
 def track_params(f: Filter, current: Mapping[str, np.ndarray], rows: np.ndarray, params: Mapping[str, Any]

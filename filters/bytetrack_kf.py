@@ -100,6 +100,22 @@ class _Variance:
         """(slope, offset), each of the full shape."""
         return self.slope, self.offset
 
+    @classmethod
+    def _of(cls, slope: np.ndarray, offset: np.ndarray, fixed: np.ndarray | None) -> _Variance:
+        out = cls.__new__(cls)
+        out.slope, out.offset, out.fixed = slope, offset, fixed
+        return out
+
+    def take(self, index: np.ndarray) -> _Variance:
+        """The variance of the tracks ``index`` (an int array; the last axis)."""
+        return self._of(self.slope[..., index], self.offset[..., index], None if self.fixed is None else self.fixed[..., index])
+
+    def join(self, other: _Variance) -> _Variance:
+        """The tracks of this variance followed by those of ``other`` (same leading shape)."""
+        fixed = None if self.fixed is None or other.fixed is None else np.concatenate([self.fixed, other.fixed], -1)
+        return self._of(np.concatenate([self.slope, other.slope], -1), np.concatenate([self.offset, other.offset], -1),
+                        fixed)
+
     def at(self, h: np.ndarray, rows: slice | np.ndarray = slice(None)) -> np.ndarray:
         """At heights h (n,) (or of the tracks ``rows`` only)."""
         if self.fixed is not None:

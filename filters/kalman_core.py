@@ -338,9 +338,12 @@ def filter_channels(m: np.ndarray, kinds: np.ndarray, row_params: np.ndarray, x_
     sigma-point recursion). Channels with equal parameters, start covariance and frame kinds share one gain
     sequence (compiled kernels: :mod:`bboxtune.filters.kalman_kernels`). Returns posterior states (C, T, 2), NaN at
     WAIT frames, and the posterior covariance at the last frame (C, 2, 2), NaN for channels still waiting there."""
-    C = m.shape[0]
-    key = np.concatenate([row_params.reshape(C, -1), P_start.reshape(C, 4)], axis=1)
-    first_of_row, row_of_channel = _group_rows(np.ascontiguousarray(key).view(np.uint64), kinds)
+    C, T = m.shape
+    if T == 1:  # one frame (a tracker's step): a row per channel costs less than finding the shared ones
+        first_of_row = row_of_channel = np.arange(C)
+    else:
+        key = np.concatenate([row_params.reshape(C, -1), P_start.reshape(C, 4)], axis=1)
+        first_of_row, row_of_channel = _group_rows(np.ascontiguousarray(key).view(np.uint64), kinds)
     compiled = jit.enabled()  # the kernels of kalman_kernels, else the numpy references here
     if recursion is None:
         tables_of = cast("Callable[[np.ndarray], StepTables]", build_tables)  # given where recursion is not

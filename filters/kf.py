@@ -33,6 +33,7 @@ array([[1. , 0. ],
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
@@ -79,5 +80,36 @@ class KF(FramePrior, Filter):
             Q = (axis.B @ axis.B.T)[:, :, None] * p[:, 0] ** 2  # Q = σ_w² B Bᵀ
             return plain_tables(axis.F, Q, p[:, 1] ** 2, axis.H[0])  # R = σ_v²
 
-        states, P_end = filter_channels(np.where(finite, z, 0.0), kinds, row_params, x_start, P_start, tables)
+        states, P_end = filter_channels(np.where(finite, z, 0.0), kinds, row_params, x_start, P_start,
+                                        lambda p: TABLES.get(("kf", axis.F.tobytes(), axis.B.tobytes(), p), lambda: tables(p)))
         return states, AxisCarry(x=states[:, -1], P=P_end)
+
+
+class RecentTables:
+    """The step tables of the last ``size`` keys of at most ``max_rows`` rows each: a tracker filters one frame per call
+    with the same parameters, so the tables of a call are mostly those of the last one. The tables are made
+    read-only."""
+
+    def __init__(self, size: int, max_rows: int) -> None:
+        self.size, self.max_rows = size, max_rows
+        self._store: dict[tuple, StepTables] = {}
+
+    def get(self, key: tuple, build: Callable[[], StepTables]) -> StepTables:
+        """The tables of ``key`` = (…, row parameters (G, k)) — the last entry the array of the rows —, built by
+        ``build()`` unless kept (always for more than ``max_rows`` rows)."""
+        rows = key[-1]
+        if len(rows) > self.max_rows:
+            return build()
+        key = (*key[:-1], rows.shape, rows.tobytes())
+        tables = self._store.get(key)
+        if tables is None:
+            tables = build()
+            for table in vars(tables).values():
+                table.setflags(write=False)
+            if len(self._store) >= self.size:
+                del self._store[next(iter(self._store))]  # the oldest
+            self._store[key] = tables
+        return tables
+
+
+TABLES = RecentTables(8, 4096)  # shared by kf and kf_cmn (the key names the back end)

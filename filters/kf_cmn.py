@@ -86,6 +86,7 @@ from bboxtune.filters.kalman_core import (
     frame_kinds,
     plain_tables,
 )
+from bboxtune.filters.kf import TABLES
 from bboxtune.filters.model import StateSpaceModel
 from bboxtune.filters.validation import check_psi, check_sigma
 
@@ -121,7 +122,8 @@ class KFCMN(FramePrior, Filter):
         difference = kalman_kernels.differenced_kinds if jit.enabled() else differenced_kinds
         kinds, gaps, m = difference(kinds, z, finite, y_before, missed, psi)
         row_params = np.stack([params["sigma_w"], params["sigma_v"], psi], axis=1)
-        states, P_end = filter_channels(m, kinds, row_params, x_start, P_start, lambda p: cmn_tables(axis, p, gaps))
+        states, P_end = filter_channels(m, kinds, row_params, x_start, P_start, lambda p: TABLES.get(
+            ("kf_cmn", axis.F.tobytes(), axis.B.tobytes(), gaps.tobytes(), p), lambda: cmn_tables(axis, p, gaps)))
         return states, AxisCarry(x=states[:, -1], P=P_end)
 
 

@@ -1,7 +1,7 @@
 """Detection-to-track association of the SORT family, as small pure functions on xywh boxes (px).
 
-* :func:`iou_matrix` — pairwise IoU (:func:`bboxtune.envs.data.metrics.iou` broadcast over pairs); a NaN box
-  overlaps nothing (IoU 0).
+* :func:`iou_matrix` — pairwise IoU (the arithmetic of :func:`bboxtune.envs.data.metrics.iou` over all pairs, tested
+  equal); a NaN box overlaps nothing (IoU 0).
 * :func:`assign` — SORT's assignment: where the pairs with IoU > ``threshold`` are already one-to-one they are the
   matches; otherwise the Hungarian assignment (``scipy.optimize.linear_sum_assignment``) maximising the summed IoU;
   either way pairs with IoU < ``threshold`` are dropped. (The shortcut matters: maximising the sum can trade one
@@ -15,8 +15,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment
 
-from bboxtune.envs.data.metrics import iou
-
 
 def iou_matrix(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """(n, m) IoU of every box of ``a`` (n, 4) with every box of ``b`` (m, 4), xywh px; 0 where either is NaN.
@@ -28,7 +26,18 @@ def iou_matrix(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     for name, boxes in (("a", first), ("b", second)):
         if boxes.ndim != 2 or boxes.shape[1] != 4:
             raise ValueError(f"{name} has shape {boxes.shape}; allowed (n, 4) xywh boxes")
-    return np.nan_to_num(iou(first[:, None, :], second[None, :, :]), nan=0.0)
+    if len(first) == 0 or len(second) == 0:
+        return np.zeros((len(first), len(second)))
+    # metrics.iou's arithmetic on the (n, m) pairs, without its per-call checks (a tracker calls this every frame)
+    x, y, w, h = first.T[:, :, None]
+    xb, yb, wb, hb = second.T[:, None, :]
+    w, h, wb, hb = np.maximum(w, 0.0), np.maximum(h, 0.0), np.maximum(wb, 0.0), np.maximum(hb, 0.0)
+    inter = (np.maximum(np.minimum(x + w, xb + wb) - np.maximum(x, xb), 0.0)
+             * np.maximum(np.minimum(y + h, yb + hb) - np.maximum(y, yb), 0.0))
+    union = w * h + wb * hb - inter
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.where(union > 0, np.minimum(inter / np.where(union > 0, union, 1.0), 1.0), 0.0)
+    return np.where(np.isnan(out), 0.0, out)  # NaN boxes (and only they) give NaN: IoU 0
 
 
 def assign(overlap: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -25,11 +25,12 @@ from typing import Any, Protocol
 import numpy as np
 
 from bboxtune import filters
-from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.filters.base import Carry
 from bboxtune.filters.box_online import OnlineBoxKF, track_params
 from bboxtune.filters.bytetrack_kf import BoxKF
+from bboxtune.filters.fir_core import FIRFilter
 from bboxtune.filters.history import History
+from bboxtune.filters.online_carry import OnlineFIR, OnlineKalman
 
 M = 4  # measured coordinates of a box: cx, cy, w, h
 
@@ -40,7 +41,7 @@ class OnlineFilter(Protocol):
     @property
     def n(self) -> int: ...
     def predict(self) -> np.ndarray: ...
-    def update(self, boxes: np.ndarray) -> np.ndarray: ...
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray: ...
     def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None: ...
     def keep(self, index: np.ndarray) -> None: ...
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None: ...
@@ -84,13 +85,16 @@ class CarryFilter:
             return np.empty((0, M))
         return self._filter().positions_from(np.full((self._n, 1, M), np.nan), self._carry)[0][:, 0]
 
-    def update(self, boxes: np.ndarray) -> np.ndarray:
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         if boxes.shape != (self._n, M):
             raise ValueError(f"boxes has shape {boxes.shape}; allowed ({self._n}, {M}): one row per live track")
-        if self._n == 0:
-            return np.empty((0, M))
-        est, self._carry = self._filter().positions_from(boxes[:, None], self._carry)
-        return est[:, 0]
+        out = np.empty((0, M))
+        if self._n:
+            est, self._carry = self._filter().positions_from(boxes[:, None], self._carry)
+            out = est[:, 0]
+        if births is not None:
+            self.start(births)
+        return out
 
     def start(self, boxes: np.ndarray, params: Mapping[str, Any] | None = None) -> None:
         k = len(boxes)
@@ -114,6 +118,23 @@ class CarryFilter:
         self.params = track_params(self.f, self.params, rows, params)
 
 
+def _xywh(boxes: np.ndarray) -> np.ndarray:
+    """:func:`bboxtune.envs.data.boxes.cxcywh_to_xywh` of an (n, 4) float array, without its checks (every frame)."""
+    out = boxes.copy()
+    out[:, :2] -= 0.5 * boxes[:, 2:]
+    return out
+
+
+def _cxcywh(boxes: np.ndarray) -> np.ndarray:
+    """:func:`bboxtune.envs.data.boxes.xywh_to_cxcywh` of an (n, 4) array, without its checks (every frame)."""
+    boxes = np.asarray(boxes, dtype=float)
+    if boxes.ndim != 2 or boxes.shape[1] != M:
+        raise ValueError(f"boxes has shape {boxes.shape}; allowed (n, {M}) xywh boxes")
+    out = boxes.copy()
+    out[:, :2] += 0.5 * boxes[:, 2:]
+    return out
+
+
 class FilterBank:
     """The filters of the live tracks (row i = the i-th track the tracker keeps): back end ``backend`` at frame
     interval ``tau`` (s) with ``params`` (``{name: value}``; the back end's defaults where not given) for new tracks.
@@ -128,7 +149,8 @@ class FilterBank:
     def __init__(self, backend: str, tau: float, params: Mapping[str, Any] | None = None) -> None:
         f = filters.make(backend, filters.constant_velocity(tau, ndim=M), **dict(params or {}))
         self.backend = backend
-        self.engine: OnlineFilter = OnlineBoxKF(f) if isinstance(f, BoxKF) else CarryFilter(f)
+        self.engine: OnlineFilter = (OnlineBoxKF(f) if isinstance(f, BoxKF) else OnlineFIR(f) if isinstance(f, FIRFilter)
+                                     else OnlineKalman(f))
 
     @property
     def n(self) -> int:
@@ -137,18 +159,20 @@ class FilterBank:
 
     def predict(self) -> np.ndarray:
         """(n, 4) xywh: where each track is expected in the next frame (no state changes)."""
-        return cxcywh_to_xywh(self.engine.predict())
+        return _xywh(self.engine.predict())
 
-    def update(self, boxes: np.ndarray) -> np.ndarray:
+    def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
         """Advance every track by one frame with its detection ``boxes`` (n, 4) xywh, a NaN row for a track without
-        one; returns the estimates (n, 4) xywh."""
-        return cxcywh_to_xywh(self.engine.update(xywh_to_cxcywh(boxes)))
+        one; returns the estimates (n, 4) xywh. ``births`` (k, 4) xywh: tracks that start in this frame (as
+        :meth:`start` after the update; the Kalman back ends start them in the same call)."""
+        born = None if births is None or len(births) == 0 else _cxcywh(births)
+        return _xywh(self.engine.update(_cxcywh(boxes), born))
 
     def start(self, boxes: np.ndarray) -> np.ndarray:
         """Start k tracks at their first detections ``boxes`` (k, 4) xywh (appended as rows n … n + k − 1);
         returns their boxes."""
         if len(boxes):
-            self.engine.start(xywh_to_cxcywh(boxes))
+            self.engine.start(_cxcywh(boxes))
         return np.asarray(boxes, dtype=float).reshape(-1, M).copy()
 
     def keep(self, index: np.ndarray) -> None:

@@ -11,7 +11,8 @@ Every frame, as SORT's ``update``:
    score >= ``high_score`` against every track, then those with ``low_score`` <= score < ``high_score`` against
    the tracks left, at IoU >= ``low_iou_threshold``; detections below ``low_score`` are dropped;
 3. matched tracks update their filter with the detection, the others predict only (one filter call for all);
-4. every unmatched detection starts a track (with ``two_stage``: only those with score >= ``new_track_score``);
+4. every unmatched detection starts a track (with ``two_stage``: only those with score >= ``new_track_score``),
+   in the same filter call;
 5. a track is reported when it was matched in this frame and has been matched in ``min_hits`` frames in a row
    (or the frame is one of the first ``min_hits``), with its filtered box; a track unmatched for more than
    ``max_age`` frames ends.
@@ -129,21 +130,21 @@ class Tracker:
             matched_det = np.concatenate([matched_det, low[second[:, 1]]])
         if cfg.two_stage:
             new = new[scores[new] >= cfg.new_track_score]
-        measured = np.full((self.bank.n, 4), np.nan)
+        n = self.bank.n
+        measured = np.full((n, 4), np.nan)
         measured[matched_track] = boxes[matched_det]
         if self.retune is not None:
             self.retune.observe(measured)
-        estimates = self.bank.update(measured)
-        hit = np.zeros(self.bank.n, dtype=bool)
+        born = np.array(boxes[new], dtype=float).reshape(-1, 4)
+        estimates = self.bank.update(measured, born)  # the new tracks start in the same call (rows n … n + k − 1)
+        hit = np.zeros(n, dtype=bool)
         hit[matched_track] = True
         tracks.streak = np.where(hit, tracks.streak + 1, 0)
         tracks.unmatched = np.where(hit, 0, tracks.unmatched + 1)
-        matched_score = np.full(self.bank.n, np.nan)
+        matched_score = np.full(n, np.nan)
         matched_score[matched_track] = scores[matched_det]
         if self.retune is not None:
             self.retune.retune(self.bank)
-        born = self.bank.start(boxes[new])
-        if self.retune is not None:
             self.retune.start(boxes[new])
         tracks.append(np.arange(self._next_id, self._next_id + len(new), dtype=np.int64))
         self._next_id += len(new)
