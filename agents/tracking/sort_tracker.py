@@ -34,6 +34,7 @@ from bboxtune.agents.tracking.association import assign, iou_matrix
 from bboxtune.agents.tracking.filter_bank import FilterBank
 from bboxtune.agents.tracking.retune import CausalRetune, Retuner
 from bboxtune.agents.tracking.search_tune import BACKEND, CausalSearch, SearchSettings
+from bboxtune.envs.data.boxes import COORD_RULE, MAX_COORD
 
 if TYPE_CHECKING:
     from bboxtune.agents.smoothing.tuner import Tuner
@@ -99,6 +100,22 @@ class FrameResult:
     scores: np.ndarray  # (r,) the matched detections' scores
 
 
+def check_detections(boxes: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``boxes`` (k, 4) xywh px and ``scores`` (k,) as float arrays, after the checks every detection passes: finite
+    x, y and w, h > 0 within :data:`~bboxtune.envs.data.boxes.MAX_COORD`, finite scores; errors name the row."""
+    b, s = np.asarray(boxes, dtype=float), np.asarray(scores, dtype=float)
+    if b.ndim != 2 or b.shape[1] != 4 or s.shape != (len(b),):
+        raise ValueError(f"boxes has shape {b.shape}, scores {s.shape}; allowed: (k, 4) xywh px and (k,)")
+    bad = ~(np.isfinite(b).all(axis=1) & (b[:, 2:] > 0).all(axis=1) & (np.abs(b) <= MAX_COORD).all(axis=1))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"boxes[{i}] = {b[i].tolist()}; allowed: finite x, y and w, h > 0 with {COORD_RULE}")
+    if not np.isfinite(s).all():
+        i = int(np.argmax(~np.isfinite(s)))
+        raise ValueError(f"scores[{i}] = {float(s[i])!r}; allowed: a finite number")
+    return b, s
+
+
 class Tracker:
     """Online SORT-style tracker over ``bank`` (its back end and parameters) with ``config``; ``retune`` re-tunes
     each track's filter from its own past detections (None: the bank's parameters throughout)."""
@@ -112,6 +129,9 @@ class Tracker:
     def step(self, boxes: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One frame: detections ``boxes`` (k, 4) xywh px with ``scores`` (k,); returns the reported tracks'
         identities (r,), filtered boxes (r, 4) and matched scores (r,)."""
+        return self._step(*check_detections(boxes, scores))
+
+    def _step(self, boxes: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         cfg, tracks = self.config, self._tracks
         self._frames += 1
         predicted = self.bank.predict()
@@ -165,13 +185,14 @@ class Tracker:
             ) -> Iterator[FrameResult]:
         """Track a whole sequence of detections (``frames`` (N,) 1-based, ``boxes`` (N, 4) xywh, ``scores`` (N,)),
         frame 1 … ``n_frames`` (default: the last detection's frame), frames without detections included."""
+        boxes, scores = check_detections(boxes, scores)
         order = np.argsort(frames, kind="stable")
         frames, boxes, scores = frames[order], boxes[order], scores[order]
         last = int(frames[-1]) if n_frames is None and len(frames) else int(n_frames or 0)
         bounds = np.searchsorted(frames, np.arange(1, last + 2))
         for t in range(1, last + 1):
             lo, hi = bounds[t - 1], bounds[t]
-            ids, est, sc = self.step(boxes[lo:hi], scores[lo:hi])
+            ids, est, sc = self._step(boxes[lo:hi], scores[lo:hi])
             yield FrameResult(t, ids, est, sc)
 
 

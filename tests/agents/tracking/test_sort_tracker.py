@@ -12,7 +12,7 @@ from bboxtune import filters
 from bboxtune.agents.smoothing.tuner import load_pretrained
 from bboxtune.agents.tracking.filter_bank import FilterBank
 from bboxtune.agents.tracking.retune import CausalRetune
-from bboxtune.agents.tracking.sort_tracker import Tracker, TrackerConfig
+from bboxtune.agents.tracking.sort_tracker import Tracker, TrackerConfig, make_tracker
 from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.envs.data.mot_io import read_detections
 
@@ -110,3 +110,21 @@ def test_tuned_tracking_is_causal() -> None:
     assert [(f, i) for f, i, _ in early] == [(f, i) for f, i, _ in cut]
     np.testing.assert_array_equal(np.array([b for *_, b in early]), np.array([b for *_, b in cut]))
 
+
+
+@pytest.mark.parametrize("name", ["sort_kf", "bytetrack_kf", "kf", "ufir_cmn", "search"])
+@pytest.mark.parametrize("bad", [np.inf, np.nan, 1e300, 2e7, -5.0, 0.0])
+def test_a_bad_detection_is_refused_naming_its_row_whatever_the_filter(name: str, bad: float) -> None:
+    tracker = make_tracker(name, 0.1)
+    boxes = np.array([[10.0, 10.0, 5.0, 8.0], [50.0, 50.0, 5.0, 8.0]])
+    for t in range(8):  # live tracks (and, for search, re-tuned ones) before the bad frame
+        tracker.step(boxes + t, np.ones(2))
+    broken = boxes + 8
+    broken[1, 2] = bad
+    with pytest.raises(ValueError, match=r"boxes\[1\] = .*allowed: finite x, y and w, h > 0"):
+        tracker.step(broken, np.ones(2))
+    frames = np.array([1, 1, 2])
+    with pytest.raises(ValueError, match=r"boxes\[2\]"):
+        list(make_tracker(name, 0.1).run(frames, np.vstack([boxes, broken[1:]]), np.ones(3)))
+    with pytest.raises(ValueError, match=r"scores\[0\] = nan"):
+        tracker.step(boxes, np.array([np.nan, 1.0]))
