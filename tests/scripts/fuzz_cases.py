@@ -103,6 +103,7 @@ COMMANDS: dict[str, Command] = {
     "track_mot": Command("track_mot", ("track",), base=("--det", "{mot}/KITTI-13/det/det.txt", "--out", "{out}"),
                          valid_skip=("--det",)),
     "eval_mot": Command("eval_mot", ("mot_metrics.score",)),
+    "track_loso": Command("track_loso", ("scores",), base=("--out", "{out}.csv")),
 }
 RUN = Path(__file__).resolve().parents[2] / "agents" / "pretrained" / "sim_ufir_cmn"  # {run}: a copy of this run
 TRACKS = {"Car4.txt": "".join(f"{70 + k},{51 + k},107,87\n" for k in range(20)),

@@ -89,6 +89,14 @@ CASES: dict[str, list] = {
         misuse("--results", "{dir}", "--gt-root", "{dir}", "--out", "{file}"),
         misuse("--resu", "{dir}", mentions="--resu"),  # flags are not abbreviated
     ],
+    "track_loso": [  # the cases that need the MOT15 data are in test_track_loso.py
+        misuse(mentions="--out"), misuse("--out", "{out}"),  # not a .csv name
+        misuse("--out", "{file}"), misuse("--out", "{under_file}/loso.csv"),
+        *[misuse("--out", "{out}.csv", "--boot", v) for v in ("99", "0", "-1", "abc", "nan", "1e9")],
+        *[misuse("--out", "{out}.csv", "--seed", v) for v in ("-1", "abc", "2147483648")],
+        misuse("--out", "{out}.csv", "--mot-root", "{missing}"), misuse("--out", "{out}.csv", "--mot-root", "{file}"),
+        misuse("--out", "{out}.csv", "--mot-root", "{dir}", mentions="--mot-root"),  # no sequences.csv in it
+    ],
     "video_camera": [
         *[misuse("--n-videos", v) for v in COUNT],
         *[misuse("--frames", v) for v in ("3", "0", "abc")],  # the env needs >= 8 frames
