@@ -30,7 +30,8 @@ from bboxtune.filters.box_online import OnlineBoxKF, track_params
 from bboxtune.filters.bytetrack_kf import BoxKF
 from bboxtune.filters.fir_core import FIRFilter
 from bboxtune.filters.history import History
-from bboxtune.filters.online_carry import OnlineFIR, OnlineKalman
+from bboxtune.filters.online_carry import OnlineKalman
+from bboxtune.filters.online_fir import OnlineFIR
 
 M = 4  # measured coordinates of a box: cx, cy, w, h
 

@@ -14,7 +14,8 @@ from bboxtune.agents.tracking.filter_bank import CarryFilter
 from bboxtune.filters.box_online import OnlineBoxKF
 from bboxtune.filters.bytetrack_kf import BoxKF
 from bboxtune.filters.fir_core import FIRFilter
-from bboxtune.filters.online_carry import OnlineFIR, OnlineKalman
+from bboxtune.filters.online_carry import OnlineKalman
+from bboxtune.filters.online_fir import OnlineFIR
 
 from ..kernel_modes import both
 
