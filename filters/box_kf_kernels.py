@@ -15,7 +15,7 @@ from bboxtune.filters import jit
 
 @jit.kernel
 def _variance(slope: float, offset: float, fixed: bool, h: float) -> float:
-    """(slope · h + offset)², or offset² when the noise does not depend on h (the reference's ``_Variance.fixed``)."""
+    """(slope · h + offset)², or offset² when the noise does not depend on h (the reference's ``HeightVariance.fixed``)."""
     s = offset if fixed else slope * h + offset
     return s * s
 

@@ -24,7 +24,9 @@ from typing import Any
 import numpy as np
 
 from bboxtune.filters.base import Filter
-from bboxtune.filters.bytetrack_kf import BoxKF, M, _Variance, check_boxes, initiate, update_state
+from bboxtune.filters.bytetrack_kf import BoxKF, HeightVariance, M, check_boxes, initiate, update_state
+
+Variances = tuple[HeightVariance, HeightVariance, HeightVariance]  # (P₀, Q, R)
 
 
 class OnlineBoxKF:
@@ -37,24 +39,24 @@ class OnlineBoxKF:
         self.kf = kf
         self.X = np.empty((5, M, 0))  # [p, v, P01, P00, P11] per coordinate and track (bboxtune.filters.bytetrack_kf)
         self.params: dict[str, np.ndarray] = {name: np.empty(0) for name in kf.PER_TRACK}
-        self._noise: tuple[_Variance, _Variance, _Variance] | None = None  # (P₀, Q, R) of the live tracks
-        self._stock: tuple[_Variance, _Variance, _Variance] | None = None  # those of one track with kf's parameters
+        self._noise: Variances | None = None  # (P₀, Q, R) of the live tracks
+        self._stock: Variances | None = None  # those of one track with kf's parameters
 
     @property
     def n(self) -> int:
         """Live tracks."""
         return self.X.shape[2]
 
-    def _variances(self) -> tuple[_Variance, _Variance, _Variance]:
+    def _variances(self) -> Variances:
         if self._noise is None:
             self._noise = self._variances_of(self.params, self.n)
         return self._noise
 
-    def _variances_of(self, params: Mapping[str, np.ndarray], n: int) -> tuple[_Variance, _Variance, _Variance]:
+    def _variances_of(self, params: Mapping[str, np.ndarray], n: int) -> Variances:
         """(P₀, Q, R) of n tracks with ``params`` (``{name: (n,)}``)."""
         noise = self.kf._noise(dict(params))
-        return (_Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n)),
-                _Variance(noise.measurement, (M, n)))
+        return (HeightVariance(noise.start, (2, M, n)), HeightVariance(noise.process, (2, M, n)),
+                HeightVariance(noise.measurement, (M, n)))
 
     def _boxes(self, X: np.ndarray) -> np.ndarray:
         boxes = X[0].T.copy()
@@ -123,7 +125,7 @@ class OnlineBoxKF:
         self._noise = None
 
 
-def _columns(noise: tuple[_Variance, _Variance, _Variance], index: np.ndarray) -> tuple[_Variance, _Variance, _Variance]:
+def _columns(noise: Variances, index: np.ndarray) -> Variances:
     """(P₀, Q, R) of the tracks ``index``."""
     return noise[0].take(index), noise[1].take(index), noise[2].take(index)
 

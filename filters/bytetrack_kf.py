@@ -87,7 +87,7 @@ class HeightNoise:
     measurement: tuple[np.ndarray, np.ndarray]  # R, h = the predicted height
 
 
-class _Variance:
+class HeightVariance:
     """The variance (slope · h + offset)² of one :class:`HeightNoise` pair, shaped (…, 4, n): computed once if the
     slope is 0."""
 
@@ -101,16 +101,16 @@ class _Variance:
         return self.slope, self.offset
 
     @classmethod
-    def _of(cls, slope: np.ndarray, offset: np.ndarray, fixed: np.ndarray | None) -> _Variance:
+    def _of(cls, slope: np.ndarray, offset: np.ndarray, fixed: np.ndarray | None) -> HeightVariance:
         out = cls.__new__(cls)
         out.slope, out.offset, out.fixed = slope, offset, fixed
         return out
 
-    def take(self, index: np.ndarray) -> _Variance:
+    def take(self, index: np.ndarray) -> HeightVariance:
         """The variance of the tracks ``index`` (an int array; the last axis)."""
         return self._of(self.slope[..., index], self.offset[..., index], None if self.fixed is None else self.fixed[..., index])
 
-    def join(self, other: _Variance) -> _Variance:
+    def join(self, other: HeightVariance) -> HeightVariance:
         """The tracks of this variance followed by those of ``other`` (same leading shape)."""
         fixed = None if self.fixed is None or other.fixed is None else np.concatenate([self.fixed, other.fixed], -1)
         return self._of(np.concatenate([self.slope, other.slope], -1), np.concatenate([self.offset, other.offset], -1),
@@ -211,8 +211,8 @@ class BoxKF(Filter):
         (NaN for a track waiting for its first detection), updated in place to the state after the last frame.
         Returns the means (T, 2, 4, n) = [p, v] ((T, 1, 4, n) = [p] if ``positions_only``)."""
         T, _, n = z.shape
-        P_start, Q = _Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n))
-        R = _Variance(noise.measurement, (M, n))
+        P_start, Q = HeightVariance(noise.start, (2, M, n)), HeightVariance(noise.process, (2, M, n))
+        R = HeightVariance(noise.measurement, (M, n))
         detected = ~np.isnan(z[:, 0])  # (T, n)
         z = np.where(detected[:, None], z, 0.0)  # 0 where no detection
         gate = detected[:, None].astype(float)  # a missing detection: gain 0 (predict only)
@@ -235,7 +235,7 @@ class BoxKF(Filter):
             means[t] = X[_P] if positions_only else X[_P:_V + 1]
         return means
 
-    def predict_state(self, X: np.ndarray, Q: _Variance) -> None:
+    def predict_state(self, X: np.ndarray, Q: HeightVariance) -> None:
         """The predict step on state X (5, 4, n), in place (h: the current mean height): x ← F x, P ← F P Fᵀ + Q per
         2×2 block."""
         self._before_predict(X)
@@ -294,7 +294,7 @@ class BoxKF(Filter):
                          blocks[..., 1, 1].T * tau**2])
 
 
-def update_state(X: np.ndarray, z: np.ndarray, R: _Variance, gate: np.ndarray | None) -> None:
+def update_state(X: np.ndarray, z: np.ndarray, R: HeightVariance, gate: np.ndarray | None) -> None:
     """The update step on state X (5, 4, n) with measured coordinates z (4, n), in place (h: the predicted height):
     S = H P Hᵀ + R, K = P Hᵀ S⁻¹ = [K0, K1], P ← P − K S Kᵀ; ``gate`` (n,) 0 where a track has no detection (its
     z is 0 there: predict only), None when every track has one."""
@@ -306,7 +306,7 @@ def update_state(X: np.ndarray, z: np.ndarray, R: _Variance, gate: np.ndarray | 
     X[_P01:_P00 + 1] -= K[1] * X[_P01:_P00 + 1]  # P01, P00 times (1 − K0)
 
 
-def initiate(X: np.ndarray, m: np.ndarray, P_start: _Variance, rows: np.ndarray) -> None:
+def initiate(X: np.ndarray, m: np.ndarray, P_start: HeightVariance, rows: np.ndarray) -> None:
     """Start the tracks ``rows`` of state X (5, 4, n) at their first measured coordinates m (4, len(rows)), in place:
     mean [m, 0], P₀ from the detection's height."""
     X[_P][:, rows], X[_V][:, rows], X[_P01][:, rows] = m, 0.0, 0.0

@@ -9,9 +9,10 @@ per-frame bookkeeping:
 * :class:`OnlineKalman` (the Kalman family: ``kf``, ``kf_cmn``, ``ukf``): the carried state stays split into
   channels (:class:`bboxtune.filters.base.AxisCarry`) between frames, and each frame is one call of the back end's
   ``_run_axes_from`` on one frame — no carry validation, no split / merge, no new filter;
-* :class:`bboxtune.filters.online_fir.OnlineFIR` (the FIR family: ``ufir``, ``ufir_cmn``, ``ofir``, ``oufir``, ``fir``): the measurement history
-  is a buffer appended in place (the reference concatenates the whole history every frame), and each frame filters
-  its last max(N) + 1 frames as :func:`bboxtune.filters.history.continue_span` does.
+* :class:`bboxtune.filters.online_fir.OnlineFIR` (the FIR family: ``ufir``, ``ufir_cmn``, ``ofir``, ``oufir``,
+  ``fir``): the measurement history is a buffer appended in place (the reference concatenates the whole history
+  every frame), and each frame filters its last max(N) + 1 frames as :func:`bboxtune.filters.history.continue_span`
+  does.
 
 Both build and validate the filter of the live tracks' parameters only when ``start``, ``keep`` or ``set_params``
 change them. Boxes are (cx, cy, w, h) (any 4-coordinate model); parameters are the back end's ``PER_TRACK`` ones,

@@ -42,7 +42,7 @@ from bboxtune.agents.tracking.search_kernels import AREA, LONGEST, choose_candid
 from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.envs.data.metrics import iou
 from bboxtune.filters import jit
-from bboxtune.filters.bytetrack_kf import BoxKF, M, _Variance, check_boxes, initiate, update_state
+from bboxtune.filters.bytetrack_kf import BoxKF, HeightVariance, M, check_boxes, initiate, update_state
 from bboxtune.filters.sort_kf import ScaledSortKF, SortKF
 
 if TYPE_CHECKING:
@@ -106,8 +106,8 @@ def predicted_boxes(kf: BoxKF, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     check_boxes(Y)
     n, T, _ = Y.shape
     noise = kf._noise({name: np.broadcast_to(value, (n,)) for name, value in kf.params.items()})
-    P_start, Q = _Variance(noise.start, (2, M, n)), _Variance(noise.process, (2, M, n))
-    R = _Variance(noise.measurement, (M, n))
+    P_start, Q = HeightVariance(noise.start, (2, M, n)), HeightVariance(noise.process, (2, M, n))
+    R = HeightVariance(noise.measurement, (M, n))
     z = kf._measure(Y.transpose(1, 2, 0))  # (T, 4, n)
     variances = (P_start.fixed, Q.fixed, R.fixed)
     if jit.enabled() and isinstance(kf, SortKF) and all(v is not None for v in variances):
@@ -119,7 +119,7 @@ def predicted_boxes(kf: BoxKF, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return cxcywh_to_xywh(boxes), scored.T
 
 
-def _prior_means(kf: BoxKF, z: np.ndarray, P_start: _Variance, Q: _Variance, R: _Variance
+def _prior_means(kf: BoxKF, z: np.ndarray, P_start: HeightVariance, Q: HeightVariance, R: HeightVariance
                  ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`bboxtune.agents.tracking.search_kernels.prior_means` in numpy, for any :class:`BoxKF`: the predicted
     means (T, 4, n) on measured coordinates ``z`` (T, 4, n) and where they are scored (T, n)."""
@@ -176,7 +176,7 @@ class CausalSearch(TrackHistories):
         self._frames = 0
         n_candidates = self.settings.steps ** 2
         noise = self.kf._noise(self.candidates)  # the candidates' fixed variances, built once
-        self._variances = tuple(np.ascontiguousarray(_Variance(pair, shape).fixed) for pair, shape in (
+        self._variances = tuple(np.ascontiguousarray(HeightVariance(pair, shape).fixed) for pair, shape in (
             (noise.start, (2, M, n_candidates)), (noise.process, (2, M, n_candidates)),
             (noise.measurement, (M, n_candidates))))
 
