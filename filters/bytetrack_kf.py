@@ -244,9 +244,9 @@ class BoxKF(Filter):
         if self.COMPILED and jit.enabled():
             pairs = [np.stack(v.pair) for v in (P_start, Q, R)]
             box_kf_kernels.run_boxes(z, detected, np.where(waiting, first, -1), *pairs,
-                                     np.array([v.fixed is not None for v in (P_start, Q, R)]),
-                                     np.ones((M, n)) if decay is None else decay,
-                                     X, X[_P:_V + 1].copy() if O is None else O, means)
+                                     np.array([v.fixed is not None for v in (P_start, Q, R)]), O is not None,
+                                     np.ones((M, n)) if decay is None else decay, X, X[_P:_V + 1] if O is None else O,
+                                     means)
             return means
         starts = {int(t): np.flatnonzero(waiting & (first == t)) for t in np.unique(first[waiting])}
         for t in range(T):
