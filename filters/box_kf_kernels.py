@@ -3,7 +3,8 @@
 :func:`run_boxes` is :meth:`bboxtune.filters.bytetrack_kf.BoxKF._run_boxes` (its numpy reference, vectorised over
 tracks with a loop over frames) as one loop over frames, tracks and coordinates: the same closed-form 2-state
 predict / update / initiate, in the same order of floating-point operations, so the means come out bit for bit equal
-(tests/filters/test_bytetrack_kf.py). A track's state X[:, c, j] is [p, v, P01, P00, P11] (v per frame).
+(tests/filters/test_bytetrack_kf.py), the gap output (:mod:`bboxtune.filters.gap_output`) included. A track's state
+X[:, c, j] is [p, v, P01, P00, P11] (v per frame).
 """
 
 from __future__ import annotations
@@ -22,12 +23,15 @@ def _variance(slope: float, offset: float, fixed: bool, h: float) -> float:
 
 @jit.kernel
 def run_boxes(z: np.ndarray, detected: np.ndarray, first: np.ndarray, start: np.ndarray, process: np.ndarray,
-              measurement: np.ndarray, fixed: np.ndarray, X: np.ndarray, means: np.ndarray) -> None:
+              measurement: np.ndarray, fixed: np.ndarray, gapped: bool, decay: np.ndarray, X: np.ndarray,
+              output: np.ndarray, means: np.ndarray) -> None:
     """The recursion on measured coordinates ``z`` (T, 4, n) (0 where not ``detected`` (T, n)) from state ``X``
     (5, 4, n), updated in place to the state after the last frame; ``first`` (n,): the frame a waiting track starts
     at (-1: none); the noise as (slope, offset) pairs ``start``, ``process`` (2, 2, 4, n) (pair, then coordinate or
     rate) and ``measurement`` (2, 4, n); ``fixed`` (3,): whether start / process / measurement noise ignores the
-    height. Writes the means (T, k, 4, n), k = 1 ([p]) or 2 ([p, v])."""
+    height. Writes the means (T, k, 4, n), k = 1 ([p]) or 2 ([p, v]): the filter's, or if ``gapped`` the gap output
+    (:func:`bboxtune.filters.gap_output.step`, per-frame factors ``decay`` (4, n)) from ``output`` (2, 4, n) = [p, v],
+    updated in place (``decay`` and ``output`` are not read otherwise)."""
     T, M, n = z.shape
     k = means.shape[1]
     for t in range(T):
@@ -62,6 +66,17 @@ def run_boxes(z: np.ndarray, detected: np.ndarray, first: np.ndarray, start: np.
                     X[2, c, j] = 0.0
                     X[3, c, j] = _variance(start[0, 0, c, j], start[1, 0, c, j], fixed[0], h)
                     X[4, c, j] = _variance(start[0, 1, c, j], start[1, 1, c, j], fixed[0], h)
-            for i in range(k):
-                for c in range(M):
-                    means[t, i, c, j] = X[i, c, j]
+            if not gapped:
+                for i in range(k):
+                    for c in range(M):
+                        means[t, i, c, j] = X[i, c, j]
+                continue
+            for c in range(M):
+                if detected[t, j]:
+                    output[0, c, j] = X[0, c, j]
+                    output[1, c, j] = X[1, c, j]
+                else:
+                    output[1, c, j] *= decay[c, j]
+                    output[0, c, j] += output[1, c, j]
+                for i in range(k):
+                    means[t, i, c, j] = output[i, c, j]

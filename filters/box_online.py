@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from bboxtune.filters.base import Filter
-from bboxtune.filters.bytetrack_kf import BoxKF, HeightVariance, M, check_boxes, initiate, update_state
+from bboxtune.filters.bytetrack_kf import GAP_DECAYS, BoxKF, HeightVariance, M, check_boxes, initiate, update_state
 
 Variances = tuple[HeightVariance, HeightVariance, HeightVariance]  # (P₀, Q, R)
 
@@ -36,6 +36,7 @@ class OnlineBoxKF:
     def __init__(self, kf: BoxKF) -> None:
         if not isinstance(kf, BoxKF):
             raise TypeError(f"kf is a {type(kf).__name__}; allowed: a box filter of a tracker (bytetrack_kf, sort_kf)")
+        check_no_gap_policy(kf.params)
         self.kf = kf
         self.X = np.empty((5, M, 0))  # [p, v, P01, P00, P11] per coordinate and track (bboxtune.filters.bytetrack_kf)
         self.params: dict[str, np.ndarray] = {name: np.empty(0) for name in kf.PER_TRACK}
@@ -97,6 +98,8 @@ class OnlineBoxKF:
             raise ValueError(f"boxes has shape {boxes.shape} or NaN; allowed (k, {M}) detections")
         check_boxes(boxes[None])
         k = len(boxes)
+        if params:
+            check_no_gap_policy(params)
         given = type(self.kf)(self.kf.model, **{**self.kf.params, **params}).params if params else self.kf.params
         fresh = {name: np.broadcast_to(given[name], (k,)) for name in self.params}
         if params:
@@ -121,8 +124,19 @@ class OnlineBoxKF:
 
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
         """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on."""
+        check_no_gap_policy(params)
         self.params = track_params(self.kf, self.params, rows, params)
         self._noise = None
+
+
+def check_no_gap_policy(params: Mapping[str, Any]) -> None:
+    """ValueError if ``params`` set a gap policy (:mod:`bboxtune.filters.gap_output`): it shapes a smoothed track's
+    output, while a tracker's filter predicts with its own model."""
+    for name in GAP_DECAYS:
+        if np.any(np.asarray(params.get(name, 1.0)) != 1.0):
+            value = np.asarray(params[name]).tolist()
+            raise ValueError(f"{name}={value!r}: the gap policy shapes a smoothed track's output inside detection gaps "
+                             "(run, positions); a tracker's filter predicts with its own model: allowed 1 (the default)")
 
 
 def _columns(noise: Variances, index: np.ndarray) -> Variances:

@@ -17,6 +17,12 @@ Parameters (per track, scalars or (B,) arrays; the published values by default):
 ``std_aspect_measurement`` s_m = 1e-1, each within :data:`STD_RANGE`. (ByteTrack's tracker also zeroes vh of a lost
 track before predicting it; that is tracker logic outside its ``KalmanFilter`` and not modelled here.)
 
+Gap policy (not ByteTrack's; the defaults are its filter bit for bit): ``gap_velocity_decay`` and ``gap_size_decay``,
+per track in [0, 1] (:data:`DECAY_RANGE`), damp the rates of the centre (x, y) and of the size (a, h) in the *output*
+inside detection gaps by that factor per second of gap (ρ^τ a frame; 0 holds the coordinate at its last detected
+estimate): :mod:`bboxtune.filters.gap_output`. The filter's state, and every estimate on a detected frame, is
+unchanged. A tracker's online filter (:class:`bboxtune.filters.box_online.OnlineBoxKF`) refuses them.
+
 Every block [coordinate, rate] of P stays uncoupled from the others (F, H, Q, R and P₀ are all block-diagonal), so
 the 8×8 recursion is four 2-state problems whose noise scales with the track's height: :class:`BoxKF` runs them in
 closed form, vectorised over tracks and coordinates, with a loop over frames only (the gains depend on the data
@@ -42,7 +48,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from bboxtune.filters import box_kf_kernels, jit
+from bboxtune.filters import box_kf_kernels, gap_output, jit
 from bboxtune.filters.base import CHUNK_SAMPLES, Carry, Filter, not_started
 from bboxtune.filters.blocks import block_diagonal, coordinate_blocks
 from bboxtune.filters.model import StateSpaceModel, check_model
@@ -50,6 +56,9 @@ from bboxtune.filters.threads import limited_blas
 from bboxtune.filters.validation import check_range
 
 M = 4  # measured coordinates of a box
+# the gap policy (bboxtune.filters.gap_output): decays per second of gap of the centre's and the size's rates
+GAP_DECAYS = ("gap_velocity_decay", "gap_size_decay")
+DECAY_RANGE = (0.0, 1.0)
 STD_RANGE = (1e-12, 1e12)  # every noise weight or standard deviation of the peer filters (finite over all of it)
 SIZE_MIN = 1e-30  # a measured box's width and height at least this (and <= VALUE_MAX, as every y entry)
 _HEIGHT = np.array([1.0, 1.0, 0.0, 1.0])  # the coordinates whose noise scales with h: x, y, h
@@ -164,6 +173,11 @@ class BoxKF(Filter):
     def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
         return {k: check_std(k, v) for k, v in params.items()}
 
+    def _gap_decay(self, params: dict[str, np.ndarray], n: int) -> np.ndarray | None:
+        """The per-frame decays (4, n) of the gap output (:mod:`bboxtune.filters.gap_output`) of tracks with the
+        per-track parameters ``params`` (arrays (n,)); None: the filter's own prediction (no gap policy)."""
+        return None
+
     def run(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """States (T, 8) or (B, T, 8) of boxes ``y`` (T, 4) or (B, T, 4), NaN rows = no detection (module docstring)."""
         return self._filter(y, u, None, positions_only=False)[0]
@@ -184,16 +198,20 @@ class BoxKF(Filter):
         check_boxes(Y)
         n_tracks, T, _ = Y.shape
         start = None if carry is None else self._start_state(carry, n_tracks)
+        missed = np.zeros(n_tracks) if carry is None else np.array(carry.missed)[:, 0]  # frames into a gap at the start
         out = np.empty((n_tracks, T, M if positions_only else 2 * M))
         ends: list[np.ndarray] = []
         step = max(1, CHUNK_SAMPLES // max(1, T * M))  # tracks per chunk: bounded working memory
         for first in range(0, n_tracks if T else 0, step):
             rows = slice(first, min(n_tracks, first + step))
-            noise = self._noise({k: v[rows] for k, v in per_track.items()})
+            chunk = {k: v[rows] for k, v in per_track.items()}
+            noise, decay = self._noise(chunk), self._gap_decay(chunk, rows.stop - rows.start)
             X = np.full((5, M, rows.stop - rows.start), np.nan) if start is None else start[..., rows].copy()
+            O = None if decay is None else gap_output.start(X, missed[rows], decay)
             z = self._measure(Y[rows].transpose(1, 2, 0))  # (T, 4, n)
             began = np.logical_or.accumulate(~np.isnan(z[:, 0]), axis=0) | ~np.isnan(X[_P, 0])  # (T, n)
-            means = self._run_boxes(z, noise, X, positions_only)  # X: now the state after the last frame
+            means = self._run_boxes(z, noise, X, positions_only, decay, O)  # X: now the state after the last frame
+            missed[rows] = gap_output.missed_after(~np.isnan(z[:, 0]), missed[rows], ~np.isnan(X[_P, 0]))
             states = out[rows]  # a view (n, T, 4 or 8): [coordinates, rates]
             states.reshape(-1, T, means.shape[1], M)[...] = means.transpose(3, 0, 1, 2)
             self._to_boxes(states)
@@ -203,13 +221,16 @@ class BoxKF(Filter):
         if T == 0:
             end_carry = carry if carry is not None else not_started(n_tracks, M)
         else:
-            end_carry = self._carry(np.concatenate(ends, axis=2) if ends else np.empty((5, M, 0)), Y[:, -1])
+            end_carry = self._carry(np.concatenate(ends, axis=2) if ends else np.empty((5, M, 0)), Y[:, -1], missed)
         return (out if batched else out[0]), end_carry
 
-    def _run_boxes(self, z: np.ndarray, noise: HeightNoise, X: np.ndarray, positions_only: bool) -> np.ndarray:
+    def _run_boxes(self, z: np.ndarray, noise: HeightNoise, X: np.ndarray, positions_only: bool,
+                   decay: np.ndarray | None = None, O: np.ndarray | None = None) -> np.ndarray:
         """The recursion on measured coordinates ``z`` (T, 4, n) (NaN columns: no detection) from state ``X`` (5, 4, n)
         (NaN for a track waiting for its first detection), updated in place to the state after the last frame.
-        Returns the means (T, 2, 4, n) = [p, v] ((T, 1, 4, n) = [p] if ``positions_only``)."""
+        Returns the means (T, 2, 4, n) = [p, v] ((T, 1, 4, n) = [p] if ``positions_only``): the filter's, or with
+        per-frame gap decays ``decay`` (4, n), the gap output (:mod:`bboxtune.filters.gap_output`) from its state
+        ``O`` (2, 4, n), updated in place."""
         T, _, n = z.shape
         P_start, Q = HeightVariance(noise.start, (2, M, n)), HeightVariance(noise.process, (2, M, n))
         R = HeightVariance(noise.measurement, (M, n))
@@ -223,7 +244,9 @@ class BoxKF(Filter):
         if self.COMPILED and jit.enabled():
             pairs = [np.stack(v.pair) for v in (P_start, Q, R)]
             box_kf_kernels.run_boxes(z, detected, np.where(waiting, first, -1), *pairs,
-                                     np.array([v.fixed is not None for v in (P_start, Q, R)]), X, means)
+                                     np.array([v.fixed is not None for v in (P_start, Q, R)]), O is not None,
+                                     np.ones((M, n)) if decay is None else decay, X, X[_P:_V + 1] if O is None else O,
+                                     means)
             return means
         starts = {int(t): np.flatnonzero(waiting & (first == t)) for t in np.unique(first[waiting])}
         for t in range(T):
@@ -232,7 +255,11 @@ class BoxKF(Filter):
             if t in starts:  # initiate: mean [m, 0], P₀ from the detection's height
                 rows = starts[t]
                 initiate(X, z[t][:, rows], P_start, rows)
-            means[t] = X[_P] if positions_only else X[_P:_V + 1]
+            if O is None or decay is None:
+                means[t] = X[_P] if positions_only else X[_P:_V + 1]
+            else:
+                gap_output.step(O, X, detected[t], decay)
+                means[t] = O[_P] if positions_only else O
         return means
 
     def predict_state(self, X: np.ndarray, Q: HeightVariance) -> None:
@@ -255,22 +282,22 @@ class BoxKF(Filter):
             raise FloatingPointError(f"{self.name}: non-finite estimate at track {rows.start + b}, frame {t} after its "
                                      f"start (parameters {self.params}): please report this input")
 
-    def _carry(self, X: np.ndarray, y_last: np.ndarray) -> Carry:
+    def _carry(self, X: np.ndarray, y_last: np.ndarray, missed: np.ndarray) -> Carry:
         """The :class:`Carry` of state ``X`` (5, 4, n): x = [coordinates, rates per second], P its 8×8 block-diagonal
-        covariance."""
+        covariance, ``missed`` the frames since each track's last detection (n,) (the gap output continues from it)."""
         tau = self.model.tau
         P01 = X[_P01].T / tau
         blocks = np.stack([np.stack([X[_P00].T, P01], -1), np.stack([P01, X[_P11].T / tau**2], -1)], -2)
         started = ~np.isnan(X[_P, :1].T)
         return Carry(x=np.concatenate([X[_P].T, X[_V].T / tau], axis=1), P=block_diagonal(blocks), y_last=y_last,
-                     measured=np.repeat(started, M, axis=1))
+                     measured=np.repeat(started, M, axis=1), missed=np.repeat(missed[:, None], M, axis=1))
 
     def _start_state(self, carry: Carry, n_tracks: int) -> np.ndarray:
         """The state X (5, 4, B) a carry holds, checked against y's batch (ValueError naming the field)."""
         if not isinstance(carry, Carry):
             raise ValueError(f"carry is a {type(carry).__name__}; allowed: None or a bboxtune.filters.base.Carry")
         wants = {"x": (n_tracks, 2 * M), "P": (n_tracks, 2 * M, 2 * M), "y_last": (n_tracks, M),
-                 "measured": (n_tracks, M)}
+                 "measured": (n_tracks, M), "missed": (n_tracks, M)}
         for name, want in wants.items():
             shape = getattr(carry, name).shape
             if shape != want:
@@ -279,6 +306,10 @@ class BoxKF(Filter):
             raise ValueError(f"carry.c / carry.P_c are given but {self.name} has no camera states; allowed: None")
         if np.isinf(carry.x).any() or np.isinf(carry.P).any():
             raise ValueError("carry.x / carry.P contain ±inf; allowed: finite values (NaN: a track not started)")
+        missed = np.asarray(carry.missed)
+        if not ((missed >= 0) & (missed == np.round(missed)) & (missed == missed[:, :1])).all():
+            raise ValueError("carry.missed: allowed the frames since a track's last detection, an integer >= 0, the "
+                             "same for its 4 coordinates")
         blocks = coordinate_blocks(carry.P, M, "carry.P")  # (B, 4, 2, 2)
         waiting = np.isnan(carry.x)
         started = ~waiting.all(axis=1)
@@ -319,9 +350,24 @@ class ByteTrackKF(BoxKF):
 
     name: ClassVar[str] = "bytetrack_kf"
     DEFAULTS: ClassVar[dict[str, Any]] = {"std_weight_position": 1 / 20, "std_weight_velocity": 1 / 160,
-                                          "std_aspect": 1e-2, "std_aspect_rate": 1e-5, "std_aspect_measurement": 1e-1}
+                                          "std_aspect": 1e-2, "std_aspect_rate": 1e-5, "std_aspect_measurement": 1e-1,
+                                          **{k: 1.0 for k in GAP_DECAYS}}
     PER_TRACK: ClassVar[tuple[str, ...]] = tuple(DEFAULTS)
     COMPILED: ClassVar[bool] = True
+
+    @classmethod
+    def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:
+        """The gap decays per second ρ → per frame ρ^τ (the noise weights are per frame already)."""
+        return {k: np.asarray(v) ** np.asarray(tau) if k in GAP_DECAYS else v for k, v in params.items()}
+
+    def _validate(self, params: dict[str, Any]) -> dict[str, Any]:
+        return {k: check_range(k, v, *DECAY_RANGE) if k in GAP_DECAYS else check_std(k, v) for k, v in params.items()}
+
+    def _gap_decay(self, params: dict[str, np.ndarray], n: int) -> np.ndarray | None:
+        velocity, size = (np.broadcast_to(params[k], (n,)) for k in GAP_DECAYS)
+        if (velocity == 1.0).all() and (size == 1.0).all():
+            return None
+        return gap_output.frame_decay(velocity, size, self.model.tau)
 
     def _noise(self, params: dict[str, np.ndarray]) -> HeightNoise:
         def column(name: str, mask: np.ndarray) -> np.ndarray:  # (4, n): the parameter on the coordinates of mask

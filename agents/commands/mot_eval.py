@@ -11,7 +11,10 @@ and to ByteTrack's Kalman filter, 95 % intervals resampling identities. Methods:
 ship, ``bytetrack_kf`` (ByteTrack / DeepSORT, stock weights) and ``sort_kf``; the fixed N_opt rule on ``kf``,
 ``kf_cmn`` and ``ufir_cmn``; ``bytetrack_oracle`` (ByteTrack's two std weights chosen per identity with the
 ground truth from a 6 × 5 grid: the headroom of tuning them, not a method); each ``--model`` run directory and
-``--pretrained`` tuner (:class:`bboxtune.agents.smoothing.tuner.Tuner`, which sees the detections only).
+``--pretrained`` tuner (:class:`bboxtune.agents.smoothing.tuner.Tuner`, which sees the detections only). Each
+``--gap-decay VELOCITY SIZE`` adds ByteTrack's filter with that gap policy (``gap_velocity_decay``, ``gap_size_decay``
+per second of gap: :mod:`bboxtune.filters.gap_output`), stock weights otherwise, and every tuner of ``bytetrack_kf``
+with that policy instead of its own ``backend_params``.
 
 Writes ``summary.md`` (the table and the command), ``per_identity.csv`` (every method's scores per identity) and
 ``command.txt`` into ``--out`` (created; an existing folder must not hold these files), each atomically.
@@ -23,10 +26,12 @@ from __future__ import annotations
 import itertools
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from bboxtune import filters
 from bboxtune.agents.cli import ArgumentParser, command, command_line, existing_dir, out_dir, outputs_taken
 from bboxtune.agents.evaluation import mot_eval
 from bboxtune.agents.evaluation.video_tables import csv_text
@@ -37,6 +42,7 @@ from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.envs.episodes.config import SPLITS, EnvConfig
 from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.mot_source import identity_episode, identity_name
+from bboxtune.filters.bytetrack_kf import GAP_DECAYS
 
 OUTPUTS = ("summary.md", "per_identity.csv", "command.txt")
 REFERENCES = ("raw", "bytetrack_kf")
@@ -69,7 +75,13 @@ def bytetrack_oracle(episodes: list[Episode]) -> list[np.ndarray]:
     return [est for _, est in best]
 
 
-def methods(models: list[Path], pretrained: list[str]) -> dict[str, mot_eval.Method]:
+def gap_policy(decays: tuple[float, float]) -> dict[str, float]:
+    """bytetrack_kf's gap policy of one ``--gap-decay VELOCITY SIZE``."""
+    return dict(zip(GAP_DECAYS, decays, strict=True))
+
+
+def methods(models: list[Path], pretrained: list[str],
+            gap_decays: Sequence[tuple[float, float]] = ()) -> dict[str, mot_eval.Method]:
     """Every method of the module docstring, by name (tuners loaded here, so a bad one fails before scoring)."""
     out: dict[str, mot_eval.Method] = {
         "raw": mot_eval.raw_method,
@@ -78,13 +90,22 @@ def methods(models: list[Path], pretrained: list[str]) -> dict[str, mot_eval.Met
         **{f"rule_{b}": mot_eval.rule_method(b) for b in ("kf", "kf_cmn", "ufir_cmn")},
         "bytetrack_oracle": bytetrack_oracle,
     }
-    for run_dir in models:
-        out[f"model:{run_dir.name}"] = tuner_method(Tuner.from_run(run_dir))
+    for decays in gap_decays:
+        try:
+            filters.make("bytetrack_kf", filters.constant_velocity(1.0, ndim=4), **gap_policy(decays))
+        except ValueError as err:
+            raise ValueError(f"--gap-decay: {err}") from None
+        out[f"bytetrack_kf gap{decays}"] = mot_eval.backend_method("bytetrack_kf", gap_policy(decays))
+    tuners = {f"model:{run_dir.name}": Tuner.from_run(run_dir) for run_dir in models}
     for name in pretrained:
         try:
-            out[f"pretrained:{name}"] = tuner_method(load_pretrained(name))
+            tuners[f"pretrained:{name}"] = load_pretrained(name)
         except ValueError as err:  # an unknown name: the message lists the installed ones
             raise ValueError(f"--pretrained: {err}") from None
+    for name, tuner in tuners.items():
+        out[name] = tuner_method(tuner)
+        if tuner.backend == "bytetrack_kf":
+            out |= {f"{name} gap{d}": tuner_method(tuner.with_backend_params(gap_policy(d))) for d in gap_decays}
     return out
 
 
@@ -108,13 +129,16 @@ def main(argv: list[str] | None = None) -> int:
                         help="a scripts/train.py run directory to score (repeatable)")
     parser.add_argument("--pretrained", action="append", default=[], metavar="NAME",
                         help="a pretrained tuner to score (repeatable; bboxtune.agents.smoothing.pretrained)")
+    parser.add_argument("--gap-decay", action="append", default=[], nargs=2, type=float, metavar=("VELOCITY", "SIZE"),
+                        help="add ByteTrack's filter (and every bytetrack_kf tuner) with this gap policy: the decays "
+                             "per second of gap of the centre's and the size's rates, each in [0, 1] (repeatable)")
     parser.add_argument("--out", required=True, type=out_dir, help="output folder (created)")
     args = parser.parse_args(argv)
     if outputs_taken(args.out, OUTPUTS):
         return 2
     command = command_line("mot_eval", argv)
     try:
-        scored = methods(args.model, args.pretrained)
+        scored = methods(args.model, args.pretrained, [(v, size) for v, size in args.gap_decay])
         identities = mot.split(mot.load_identities(args.mot_root))[args.split]
         if not identities:
             raise ValueError(f"no MOT identities in split {args.split!r}")

@@ -5,7 +5,8 @@ Each tuner is a folder ``agents/pretrained/<name>/`` holding the files of a ``sc
 
     model.zip           the PPO model (loaded by bboxtune.agents.training.safe_load: nothing in it is unpickled)
     vecnormalize.json   its observation statistics (bboxtune.agents.training.run_files)
-    config.yml          the run's config: env id and env kwargs (source, back end), algorithm, hyperparameters
+    config.yml          the run's config: env id and env kwargs (source, back end), algorithm, hyperparameters;
+                        optionally backend_params (bboxtune.agents.smoothing.tuner: settings outside the action)
     summary.md          the compare.py summary it reached (test split of its env)
     gate.json           optional: its learned gate (bboxtune.agents.policies.gate_file; compare.py --gate), applied
     when it is loaded

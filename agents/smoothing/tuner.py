@@ -30,6 +30,12 @@ the env's reset observation on the same measurements (tested), and the parameter
 applies for the policy's action. Smoothed boxes are the back end's position estimates; frames before the
 first measured one have no estimate (NaN rows), later missing frames are predicted.
 
+Back-end settings outside the tuner's action (``backend_params`` in its ``config.yml``, a mapping of parameter
+names to numbers, e.g. ``mot15_det``'s bytetrack_kf gap policy ``gap_velocity_decay`` / ``gap_size_decay``:
+:mod:`bboxtune.filters.gap_output`) apply wherever :meth:`Tuner.smooth` filters a track, the same for every track;
+they change neither the observation nor the parameters :meth:`Tuner.tune` returns (so neither a tracker's re-tuned
+filter nor the env's reward, which score the tuner's parameters alone). :meth:`Tuner.with_backend_params` replaces them.
+
 A gated tuner (:mod:`bboxtune.agents.evaluation.gate`: a ``gate.json`` in the tuner's folder, read when it is loaded, or
 ``Tuner.with_gate(FILE)`` for a file that ``compare.py --gate`` wrote) leaves a track alone where its gate stays
 closed (:meth:`Tuner.leaves_alone`): :meth:`Tuner.smooth` then returns the boxes as given, missing frames included.
@@ -43,7 +49,8 @@ the scripts' :mod:`bboxtune.agents.cli`) stays light.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -52,6 +59,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import ArrayLike
 
+from bboxtune import filters
 from bboxtune.agents.policies.gate_file import GATE_FILE, Gate, read_gate
 from bboxtune.agents.smoothing import pretrained
 from bboxtune.envs.data.boxes import COORD_RULE, beyond_max_coord, cxcywh_to_xywh, xywh_to_cxcywh
@@ -60,7 +68,7 @@ from bboxtune.envs.episodes.config import EnvConfig, check_real
 from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.episode import rule_nominal as source_nominal  # the sources' own rule for given σ
 from bboxtune.envs.episodes.features import box_scale, measurement_features
-from bboxtune.envs.episodes.scoring import run_positions, run_tracks
+from bboxtune.envs.episodes.scoring import box_model, run_positions, run_tracks
 from bboxtune.envs.episodes.sources import SimSource
 from bboxtune.envs.episodes.video_source import VideoSettings
 from bboxtune.envs.track_env import TrackEnv
@@ -76,6 +84,7 @@ TAU_RANGE = (1e-3, 1.0)  # s, the envs' range of frame intervals
 MIN_FRAMES = 8  # the envs' shortest track
 MIN_MEASURED = 2  # a box scale and one difference
 SOURCE_ONLY = ("trackers", "mix_weights", "otb_speedup_max", "mot_root")  # env settings that EnvConfig refuses with source "sim"
+BACKEND_PARAMS = "backend_params"  # config.yml: back-end settings outside the tuner's action (module docstring)
 
 
 def check_boxes(boxes: ArrayLike, name: str = "boxes") -> np.ndarray:
@@ -164,6 +173,7 @@ class Tuner:
     config: EnvConfig  # the env it was trained on (source, back end, action settings)
     action_map: ActionMap
     gate: Gate | None = None  # where it stays closed the track is left alone (bboxtune.agents.policies.gate_file)
+    backend_params: Mapping[str, float] = field(default_factory=dict)  # fixed back-end settings (module docstring)
 
     @classmethod
     def from_run(cls, run_dir: str | os.PathLike, name: str | None = None) -> Tuner:
@@ -182,7 +192,26 @@ class Tuner:
         config = EnvConfig.from_kwargs(**cfg["env_kwargs"])  # constructing a config reads no data
         policy = SB3Policy.load(run_dir, "final", venv=venv)
         tuner = cls(name=name or str(run_dir), policy=policy, config=config, action_map=env.action_map)
+        try:
+            tuner = tuner.with_backend_params(cfg.get(BACKEND_PARAMS, {}))
+        except (ValueError, TypeError) as err:
+            raise RunError(f"{run_dir / CONFIG}: {BACKEND_PARAMS}: {err}") from None
         return tuner.with_gate(run_dir / GATE_FILE) if (run_dir / GATE_FILE).exists() else tuner
+
+    def with_backend_params(self, params: Mapping[str, Any]) -> Tuner:
+        """This tuner with the back-end settings ``params`` (``{name: number}``, names of the back end's parameters
+        that the tuner does not set; ValueError / TypeError naming the parameter) instead of its own."""
+        if not isinstance(params, Mapping):
+            raise TypeError(f"{params!r} is a {type(params).__name__}; allowed: a mapping of parameter names to numbers")
+        outside = sorted(set(filters.filter_class(self.backend).DEFAULTS) - set(ACCEPTS[self.backend]))
+        for name, value in params.items():
+            if name not in outside:
+                raise ValueError(f"{name!r} is not a setting of back end {self.backend} outside the tuner's action; "
+                                 f"allowed: {', '.join(outside) or 'none'}")
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError(f"{name}={value!r}; allowed: a number")
+        filters.make(self.backend, box_model(1.0), **params)  # each value within its range
+        return replace(self, backend_params={k: float(v) for k, v in params.items()})
 
     def with_gate(self, path: str | os.PathLike) -> Tuner:
         """This tuner gated by the gate file ``path`` (:mod:`bboxtune.agents.policies.gate_file`; ValueError naming the file)."""
@@ -231,9 +260,9 @@ class Tuner:
         return self.params(self.observe(boxes, tau))
 
     def smooth(self, boxes: ArrayLike, tau: Any, params: dict[str, float | int] | None = None) -> np.ndarray:
-        """The track filtered by the back end with ``params`` (default: :meth:`tune`'s), (T, 4) xywh px; NaN rows
-        where there is no estimate (before the first measured frame). Without ``params``, a track the gate leaves
-        alone is returned as given."""
+        """The track filtered by the back end with ``params`` (default: :meth:`tune`'s) and the tuner's
+        ``backend_params``, (T, 4) xywh px; NaN rows where there is no estimate (before the first measured frame).
+        Without ``params``, a track the gate leaves alone is returned as given."""
         xywh, tau = check_boxes(boxes), check_tau(tau)  # checked and converted once, for every path below
         if params is None:
             seen = self._observe(xywh, tau)
@@ -245,7 +274,7 @@ class Tuner:
                 raise ValueError(f"params has keys {sorted(params)}; back end {self.backend} takes "
                                  f"{ACCEPTS[self.backend]}")
             y = xywh_to_cxcywh(xywh)
-        est = run_positions(self.backend, y, tau, {k: np.array([v]) for k, v in params.items()})[0]
+        est = run_positions(self.backend, y, tau, {k: np.array([v]) for k, v in params.items()}, self.backend_params)[0]
         return cxcywh_to_xywh(est)
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from bboxtune import filters
@@ -59,11 +61,17 @@ def detections(backend: str, y: np.ndarray) -> np.ndarray:
     return out
 
 
-def run_positions(backend: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray]) -> np.ndarray:
+def run_positions(backend: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray],
+                  fixed: Mapping[str, float] | None = None) -> np.ndarray:
     """Filter the measured boxes ``y`` (T, 4) (as :func:`detections`) once per candidate: ``params`` maps names to
-    arrays (A,); only the parameters ``backend`` accepts are passed. Returns position estimates (A, T, 4) cx, cy,
-    w, h (:func:`bboxtune.filters.candidate_positions`, which also handles frame units)."""
-    return filters.candidate_positions(backend, detections(backend, y), tau, _used(backend, params))
+    arrays (A,); only the parameters ``backend`` accepts are passed, and ``fixed`` (parameters of ``backend`` outside
+    the env's set, e.g. bytetrack_kf's gap policy) the same for every candidate. Returns position estimates
+    (A, T, 4) cx, cy, w, h (:func:`bboxtune.filters.candidate_positions`, which also handles frame units)."""
+    used = _used(backend, params)
+    if fixed:
+        n = len(next(iter(used.values()))) if used else 1
+        used |= {k: np.full(n, float(v)) for k, v in fixed.items()}
+    return filters.candidate_positions(backend, detections(backend, y), tau, used)
 
 
 def check_candidates(backend: str, n_candidates: int, n_frames: int) -> None:

@@ -1,6 +1,7 @@
 """bboxtune.filters.bytetrack_kf: ByteTrack's / DeepSORT's box Kalman filter, batched, against a per-frame reference written
 from the published equations (initiate / predict / update with 8×8 matrices and Cholesky solves, as the original); its
-compiled recursion (bboxtune.filters.box_kf_kernels) against the numpy one, bit for bit."""
+compiled recursion (bboxtune.filters.box_kf_kernels) against the numpy one, bit for bit; its gap policy
+(bboxtune.filters.gap_output) against the damped constant-velocity model worked out per frame."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from hypothesis import strategies as st
 
 from bboxtune import filters
 from bboxtune.filters.base import Carry
-from bboxtune.filters.bytetrack_kf import STD_RANGE
+from bboxtune.filters.box_online import OnlineBoxKF
+from bboxtune.filters.bytetrack_kf import GAP_DECAYS, STD_RANGE
 from tests.kernel_modes import both
 
 TAU = 1 / 30
@@ -87,6 +89,12 @@ def random_params(n: int, seed: int) -> dict[str, np.ndarray]:
     return {k: defaults[k] * 10 ** rng.uniform(-1, 1, n) for k in PARAMS}
 
 
+def random_decays(n: int, seed: int) -> dict[str, np.ndarray]:
+    """Gap decays per track: 0, 1 or uniform in between."""
+    rng = np.random.default_rng(seed)
+    return {k: rng.choice([0.0, 1.0, *rng.uniform(0, 1, 2)], n) for k in GAP_DECAYS}
+
+
 def assert_matches_reference(y: np.ndarray, states: np.ndarray, params: dict[str, np.ndarray]) -> None:
     for b in range(len(y)):
         ref = ReferenceKF(*(float(np.broadcast_to(params[k], len(y))[b]) for k in PARAMS)).run(y[b])
@@ -108,20 +116,21 @@ def test_matches_the_reference_on_random_tracks_with_missing_frames_and_per_trac
 
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(1, 5), st.integers(0, 60), st.floats(0.0, 0.9), st.booleans(),
-       st.integers(0, 60))
+       st.integers(0, 60), st.booleans())
 def test_the_compiled_recursion_equals_the_numpy_one_bit_for_bit(seed: int, B: int, T: int, missing: float,
-                                                                 tuned: bool, split: int) -> None:
+                                                                 tuned: bool, split: int, gapped: bool) -> None:
     """Runs, positions and a run continued from a carry (late starts, gaps, tracks never detected; the published or
-    random per-track weights): the kernel and the reference give the same bits (the env's episodes and rewards do
-    not depend on ``$BBOXTUNE_JIT``)."""
+    random per-track weights; without or with random per-track gap decays): the kernel and the reference give the
+    same bits (the env's episodes and rewards do not depend on ``$BBOXTUNE_JIT``)."""
     y = boxes(B, T, seed, missing)
-    flt = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4), **(random_params(B, seed) if tuned else {}))
+    params = {**(random_params(B, seed) if tuned else {}), **(random_decays(B, seed) if gapped else {})}
+    flt = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4), **params)
     cut = min(split, T)
 
     def runs() -> list[np.ndarray]:
         first, carry = flt.run_from(y[:, :cut])
         rest, end = flt.run_from(y[:, cut:], carry)
-        return [flt.run(y), flt.positions(y), first, rest, end.x, end.P]
+        return [flt.run(y), flt.positions(y), first, rest, end.x, end.P, end.missed]
 
     kernel, reference = both(runs)
     for got, want in zip(kernel, reference, strict=True):
@@ -131,7 +140,7 @@ def test_the_compiled_recursion_equals_the_numpy_one_bit_for_bit(seed: int, B: i
 def test_defaults_are_the_published_weights_and_match_the_reference() -> None:
     assert filters.filter_class("bytetrack_kf").DEFAULTS == {
         "std_weight_position": 1 / 20, "std_weight_velocity": 1 / 160, "std_aspect": 1e-2, "std_aspect_rate": 1e-5,
-        "std_aspect_measurement": 1e-1}
+        "std_aspect_measurement": 1e-1, "gap_velocity_decay": 1.0, "gap_size_decay": 1.0}
     y = boxes(3, 50, 2)
     y[:, 0] = np.nan  # first frame missing
     flt = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4))
@@ -240,6 +249,8 @@ def test_extreme_parameters_stay_finite() -> None:
     ({"std_aspect_measurement": np.array([0.1, 0.0])}, r"array of shape \(2,\) with entry \[1\] = 0.0"),
     ({"std_weight_position": np.ones((2, 2))}, r"shape \(2, 2\); allowed: a scalar or shape \(B,\)"),
     ({"sigma_w": 1.0}, r"unknown parameter\(s\) \['sigma_w'\]"),
+    ({"gap_velocity_decay": 1.5}, r"gap_velocity_decay=1.5 is out of range: allowed 0 <= gap_velocity_decay <= 1"),
+    ({"gap_size_decay": np.array([0.5, -0.1])}, r"gap_size_decay=array of shape \(2,\) with entry \[1\] = -0.1"),
 ])
 def test_parameter_errors_name_the_parameter_and_its_range(params: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):
@@ -283,3 +294,82 @@ def test_carry_errors() -> None:
     P[:, 0, 1] = P[:, 1, 0] = 1.0
     with pytest.raises(ValueError, match="carry.P couples different coordinates"):
         flt.run_from(y, Carry(x=carry.x, P=P, y_last=carry.y_last, measured=carry.measured))
+
+
+def test_the_gap_policy_follows_the_damped_model_and_leaves_the_detected_frames_alone() -> None:
+    """Inside a gap the output starts from the last detected frame's estimate and moves on at a velocity that decays
+    by ρ^τ a frame (the centre: ``gap_velocity_decay``; the size held for ``gap_size_decay`` = 0); every detected
+    frame, and the first frame after a gap, is the stock filter's."""
+    y = boxes(4, 70, 16, missing=0.0)
+    y[:, 30:45] = np.nan
+    y[1, 50:70] = np.nan  # trailing frames without a detection: predicted too
+    model = filters.constant_velocity(TAU, ndim=4)
+    stock = filters.make("bytetrack_kf", model).run(y)
+    rho = 0.3
+    states = filters.make("bytetrack_kf", model, gap_velocity_decay=rho, gap_size_decay=0.0).run(y)
+    detected = ~np.isnan(y[..., 0])
+    np.testing.assert_array_equal(states[detected], stock[detected])
+    d = rho**TAU
+    for b, gap in [(0, range(30, 45)), (1, range(30, 45)), (1, range(50, 70))]:
+        last = gap[0] - 1
+        for k, t in enumerate(gap, start=1):
+            travelled = sum(d**i for i in range(1, k + 1))
+            want = [*(stock[b, last, :2] + stock[b, last, 4:6] * TAU * travelled), *stock[b, last, 2:4],
+                    *(stock[b, last, 4:6] * d**k), 0.0, 0.0]
+            np.testing.assert_allclose(states[b, t], want, rtol=1e-12, atol=1e-9)
+    assert not np.allclose(states[0, 44, :2], stock[0, 44, :2])  # the policy changed the gap output
+
+
+def test_the_default_gap_policy_is_the_filter_bit_for_bit() -> None:
+    y = boxes(5, 80, 17, missing=0.4)
+    model = filters.constant_velocity(TAU, ndim=4)
+    stock = filters.make("bytetrack_kf", model).run(y)
+    explicit = filters.make("bytetrack_kf", model, gap_velocity_decay=1.0, gap_size_decay=np.ones(5)).run(y)
+    np.testing.assert_array_equal(explicit, stock)
+    held = filters.make("bytetrack_kf", model, gap_velocity_decay=0.0, gap_size_decay=0.0).positions(y)
+    missing = np.isnan(y[..., 0]) & ~np.isnan(stock[..., 0])
+    assert np.abs(held - stock[..., :4])[missing].max() > 1.0  # the policy reaches the gap frames ...
+    assert (np.diff(held[:, :, 3], axis=1)[missing[:, 1:]] == 0).all()  # ... and holds the height there
+
+
+def test_the_gap_decay_is_per_second_across_frame_rates_and_in_the_batch_runners() -> None:
+    """The same ρ gives the same output at any τ that the per-frame factor ρ^τ makes equal; the batch runners
+    (frame units, tracks of several τ in one call) equal a filter built at each τ."""
+    y = boxes(1, 60, 18, missing=0.3)[0]
+    decays = {"gap_velocity_decay": 0.4, "gap_size_decay": 0.2}
+    a = filters.make("bytetrack_kf", filters.constant_velocity(0.1, ndim=4), **decays).positions(y)
+    b = filters.make("bytetrack_kf", filters.constant_velocity(1.0, ndim=4),
+                     **{k: v**0.1 for k, v in decays.items()}).positions(y)
+    np.testing.assert_allclose(a, b, rtol=1e-12)
+    ys, taus = [y, boxes(1, 60, 19)[0], boxes(1, 45, 20)[0]], [1 / 30, 0.1, 0.04]
+    params = {**random_params(3, 21), **random_decays(3, 22)}
+    est = filters.track_positions("bytetrack_kf", ys, taus, params)
+    for i in range(3):
+        alone = filters.make("bytetrack_kf", filters.constant_velocity(taus[i], ndim=4),
+                             **{k: v[i] for k, v in params.items()}).positions(ys[i])
+        np.testing.assert_allclose(est[i], alone, rtol=1e-12)
+
+
+def test_run_from_continues_the_gap_output_across_the_split() -> None:
+    y = boxes(4, 90, 23, missing=0.2)
+    y[:, 32:52] = np.nan  # a gap across the split at 40
+    y[3, :60] = np.nan  # starts after the split
+    flt = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4), **random_decays(4, 24))
+    whole = flt.run(y)
+    first, carry = flt.run_from(y[:, :40])
+    np.testing.assert_array_equal(carry.missed[:, 0], [8, 8, 8, 0])  # frames since the last detection
+    rest, end = flt.run_from(y[:, 40:], carry)
+    np.testing.assert_allclose(np.concatenate([first, rest], axis=1), whole, rtol=1e-12, atol=1e-9)
+    bad = Carry(x=carry.x, P=carry.P, y_last=carry.y_last, measured=carry.measured, missed=carry.missed + 0.5)
+    with pytest.raises(ValueError, match="carry.missed: allowed the frames since a track's last detection"):
+        flt.run_from(y[:, 40:], bad)
+
+
+def test_a_tracker_refuses_a_gap_policy() -> None:
+    model = filters.constant_velocity(TAU, ndim=4)
+    with pytest.raises(ValueError, match="gap_velocity_decay=0.5: the gap policy shapes a smoothed track's output"):
+        OnlineBoxKF(filters.make("bytetrack_kf", model, gap_velocity_decay=0.5))
+    kf = OnlineBoxKF(filters.make("bytetrack_kf", model))
+    kf.start(np.array([[50.0, 60.0, 20.0, 40.0]]))
+    with pytest.raises(ValueError, match="gap_size_decay=0.0"):
+        kf.set_params(np.array([0]), {"gap_size_decay": 0.0})

@@ -65,3 +65,28 @@ def test_refuses_an_unknown_pretrained_tuner(tmp_path: Path, capsys: pytest.Capt
     err = capsys.readouterr().err
     assert "'nope'" in err and "sequences.csv" not in err  # tuners are loaded before the data is read
     assert not (tmp_path / "o").exists()
+
+
+@needs_mot
+def test_gap_decay_rows_change_the_gap_frames_only(tmp_path: Path) -> None:
+    out = tmp_path / "table"
+    assert mot_eval.main(["--mot-root", str(MOT_ROOT), "--split", "test", "--out", str(out), "--pretrained",
+                          "mot15_det", "--gap-decay", "1", "1", "--gap-decay", "0.5", "0"]) == 0
+    with open(out / "per_identity.csv") as f:
+        table = list(csv.DictReader(f))
+    by = {name: [r for r in table if r["method"] == name] for name in {r["method"] for r in table}}
+    assert set(by) >= {"bytetrack_kf gap(1.0, 1.0)", "bytetrack_kf gap(0.5, 0.0)", "pretrained:mot15_det",
+                       "pretrained:mot15_det gap(1.0, 1.0)", "pretrained:mot15_det gap(0.5, 0.0)"}
+    assert by["bytetrack_kf gap(1.0, 1.0)"] == [r | {"method": "bytetrack_kf gap(1.0, 1.0)"} for r in by["bytetrack_kf"]]
+    for tuned, stock in [("bytetrack_kf gap(0.5, 0.0)", "bytetrack_kf"),
+                         ("pretrained:mot15_det gap(0.5, 0.0)", "pretrained:mot15_det gap(1.0, 1.0)")]:
+        pairs = list(zip(by[tuned], by[stock], strict=True))
+        assert all(a["iou_detected"] == b["iou_detected"] and a["sq_detected"] == b["sq_detected"] for a, b in pairs)
+        assert any(a["iou_gap_sum"] != b["iou_gap_sum"] for a, b in pairs)
+
+
+def test_refuses_a_gap_decay_out_of_range(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert mot_eval.main(["--mot-root", str(tmp_path), "--out", str(tmp_path / "o"), "--gap-decay", "1.5", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "--gap-decay: gap_velocity_decay=1.5 is out of range" in err and "sequences.csv" not in err
+    assert not (tmp_path / "o").exists()

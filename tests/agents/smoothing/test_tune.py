@@ -242,3 +242,40 @@ def test_smooth_checks_and_converts_the_track_once(gate_margin: float | None, mo
     assert calls == {"check_boxes": 1, "check_tau": 1, "xywh_to_cxcywh": 1}
     if gate_margin is not None:
         np.testing.assert_array_equal(out, boxes)
+
+
+def test_backend_params_change_only_the_gap_output_of_mot15_det():
+    """mot15_det's config carries bytetrack_kf's gap policy: the policy's parameters and every measured frame are
+    those of the tuner without it; inside the gap the size is held at its last estimate."""
+    tuner = load_pretrained("mot15_det")
+    assert tuner.backend_params == {"gap_velocity_decay": 0.7, "gap_size_decay": 0.0}
+    without = tuner.with_backend_params({})
+    boxes = _track(7)
+    boxes[20:30] = np.nan
+    assert tuner.tune(boxes, 0.1) == without.tune(boxes, 0.1)
+    got, stock = tuner.smooth(boxes, 0.1), without.smooth(boxes, 0.1)
+    measured = ~np.isnan(boxes[:, 0])
+    np.testing.assert_array_equal(got[measured], stock[measured])
+    assert np.abs(got[~measured] - stock[~measured]).max() > 0.1
+    np.testing.assert_array_equal(got[20:30, 2:], np.repeat(got[19:20, 2:], 10, axis=0))
+
+
+@pytest.mark.parametrize(("params", "error", "match"), [
+    ("0.7", TypeError, "'0.7' is a str; allowed: a mapping"),
+    ({"std_weight_position": 0.1}, ValueError, "'std_weight_position' is not a setting of back end bytetrack_kf "
+                                               "outside the tuner's action; allowed: gap_size_decay, gap_velocity_decay"),
+    ({"gap_size_decay": "0"}, TypeError, "gap_size_decay='0'; allowed: a number"),
+    ({"gap_velocity_decay": 1.5}, ValueError, "gap_velocity_decay=1.5 is out of range"),
+])
+def test_bad_backend_params_are_named(params, error, match):
+    with pytest.raises(error, match=match):
+        load_pretrained("mot15_det").with_backend_params(params)
+
+
+def test_bad_backend_params_in_a_config_name_the_file(tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(pretrained.folder("mot15_det"), run)
+    config = run / "config.yml"
+    config.write_text(config.read_text().replace("gap_size_decay: 0.0", "gap_size_decay: -1.0"))
+    with pytest.raises(RunError, match="config.yml: backend_params: gap_size_decay=-1.0 is out of range"):
+        Tuner.from_run(run)
