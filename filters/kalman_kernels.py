@@ -180,6 +180,65 @@ def _affine_channels(by_row: np.ndarray, steady_from: int, row_of_channel: np.nd
 
 
 
+@jit.kernel
+def cmn_tables(p: np.ndarray, F: np.ndarray, BB: np.ndarray, H: np.ndarray, H_F_inv: np.ndarray,
+               n_kinds: int) -> tuple:
+    """The step tables (A, Q, Lam, D, R, M) of :func:`bboxtune.filters.kf_cmn.cmn_tables_numpy` for G rows ``p`` =
+    [σ_w, σ_v, ψ] (G, 3) and ``n_kinds`` kinds, from the axis model's F (2, 2), B Bᵀ (2, 2), H (2,) and H F⁻¹ (2,):
+    the plain KF's tables for every kind, UPDATE_Y on y with var(v_n) = σ_v²/(1 − ψ²), UPDATE_Z Algorithm 1's (the
+    gap kinds are left to the caller). The reference's operations in its order: a sum over one index is
+    0 + t₀ + t₁ (``np.einsum``'s); 𝒬's double sum over j, k runs j-major, for one row (G = 1) as the k-sums added
+    per j — the order ``np.einsum`` takes for three operands."""
+    G = p.shape[0]
+    A, Qk = np.empty((n_kinds, 2, 2, G)), np.empty((n_kinds, 2, 2, G))
+    Lam, D, M = np.zeros((n_kinds, 2, G)), np.zeros((n_kinds, 2, G)), np.zeros((n_kinds, 2, G))
+    R = np.ones((n_kinds, G))
+    Q, I_LD, I_LH = np.empty((2, 2)), np.empty((2, 2)), np.empty((2, 2))
+    Gamma, D_z, Phi, L = np.empty(2), np.empty(2), np.empty(2), np.empty(2)
+    for g in range(G):
+        sigma_w, sigma_v, psi = p[g, 0], p[g, 1], p[g, 2]
+        var_w, var_v = sigma_w * sigma_w, sigma_v * sigma_v
+        for i in range(2):
+            for j in range(2):
+                Q[i, j] = BB[i, j] * var_w  # Q = σ_w² B Bᵀ
+        for k in range(n_kinds):
+            for i in range(2):
+                for j in range(2):
+                    A[k, i, j, g], Qk[k, i, j, g] = F[i, j], Q[i, j]
+        D[UPDATE_Y, 0, g], D[UPDATE_Y, 1, g] = H[0], H[1]
+        R[UPDATE_Y, g] = var_v / (1.0 - psi * psi)  # the first y: var(v_n)
+        for i in range(2):
+            Gamma[i] = H_F_inv[i] * psi  # Γ = ψ H F⁻¹ (eq. 5)
+            D_z[i] = H[i] - Gamma[i]  # D = H − Γ (eq. 5)
+        for i in range(2):
+            Phi[i] = 0.0 + Q[i, 0] * Gamma[0] + Q[i, 1] * Gamma[1]  # Φ = Q Γᵀ
+        R_bar = (0.0 + Gamma[0] * Phi[0] + Gamma[1] * Phi[1]) + var_v  # R̄ = Γ Φ + σ_v² (eq. 6)
+        HPhi_R = (0.0 + H[0] * Phi[0] + H[1] * Phi[1]) + var_v
+        for i in range(2):
+            L[i] = Phi[i] / HPhi_R  # Λ = Φ (H Φ + σ_v²)⁻¹ (eq. 10)
+        for i in range(2):
+            for j in range(2):
+                eye = 1.0 if i == j else 0.0
+                I_LD[i, j], I_LH[i, j] = eye - L[i] * D_z[j], eye - L[i] * H[j]
+        for i in range(2):
+            for k in range(2):
+                A[UPDATE_Z, i, k, g] = 0.0 + I_LD[i, 0] * F[0, k] + I_LD[i, 1] * F[1, k]  # A = (I − Λ D) F (eq. 8)
+        for i in range(2):
+            for m in range(2):  # 𝒬 = (I − Λ H) Q (I − Λ D)ᵀ (eq. 11)
+                q = 0.0
+                for j in range(2):
+                    if G == 1:
+                        q += I_LH[i, j] * Q[j, 0] * I_LD[m, 0] + I_LH[i, j] * Q[j, 1] * I_LD[m, 1]
+                    else:
+                        q = q + I_LH[i, j] * Q[j, 0] * I_LD[m, 0]
+                        q = q + I_LH[i, j] * Q[j, 1] * I_LD[m, 1]
+                Qk[UPDATE_Z, i, m, g] = q
+        Lam[UPDATE_Z, 0, g], Lam[UPDATE_Z, 1, g] = L[0], L[1]
+        D[UPDATE_Z, 0, g], D[UPDATE_Z, 1, g] = D_z[0], D_z[1]
+        R[UPDATE_Z, g] = R_bar
+    return A, Qk, Lam, D, R, M
+
+
 def differenced_kinds(kinds: np.ndarray, z: np.ndarray, finite: np.ndarray, y_before: np.ndarray,
                       missed: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`bboxtune.filters.kf_cmn.differenced_kinds` compiled: the frame kinds (C, T) with every finite y_n that has
