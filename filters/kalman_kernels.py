@@ -181,6 +181,36 @@ def _affine_channels(by_row: np.ndarray, steady_from: int, row_of_channel: np.nd
 
 
 @jit.kernel
+def kf_tables(p: np.ndarray, F: np.ndarray, BB: np.ndarray, H: np.ndarray, n_kinds: int) -> tuple:
+    """The step tables (A, Q, Lam, D, R, M) of a plain KF (``kalman_core.plain_tables``) for G rows ``p`` = [σ_w, σ_v]
+    (G, 2) and ``n_kinds`` kinds, from the axis model's F (2, 2), B Bᵀ (2, 2) and H (2,): Q = σ_w² B Bᵀ, R = σ_v²."""
+    G = p.shape[0]
+    A, Q, Lam, D, R, M = _empty_tables(n_kinds, G)
+    for g in range(G):
+        _plain_row(A, Q, D, R, g, p[g, 0] * p[g, 0], p[g, 1] * p[g, 1], F, BB, H)
+    return A, Q, Lam, D, R, M
+
+
+@jit.kernel
+def _empty_tables(n_kinds: int, G: int) -> tuple:
+    """A, Q (n_kinds, 2, 2, G) to be filled; Lam, D, M (n_kinds, 2, G) 0; R (n_kinds, G) 1."""
+    return (np.empty((n_kinds, 2, 2, G)), np.empty((n_kinds, 2, 2, G)), np.zeros((n_kinds, 2, G)),
+            np.zeros((n_kinds, 2, G)), np.ones((n_kinds, G)), np.zeros((n_kinds, 2, G)))
+
+
+@jit.kernel
+def _plain_row(A: np.ndarray, Q: np.ndarray, D: np.ndarray, R: np.ndarray, g: int, var_w: float, var_y: float,
+               F: np.ndarray, BB: np.ndarray, H: np.ndarray) -> None:
+    """Row g of the plain KF's tables: every kind predicts with (F, Q = σ_w² B Bᵀ); UPDATE_Y updates with (H, var_y)."""
+    for k in range(A.shape[0]):
+        for i in range(2):
+            for j in range(2):
+                A[k, i, j, g], Q[k, i, j, g] = F[i, j], BB[i, j] * var_w
+    D[UPDATE_Y, 0, g], D[UPDATE_Y, 1, g] = H[0], H[1]
+    R[UPDATE_Y, g] = var_y
+
+
+@jit.kernel
 def cmn_tables(p: np.ndarray, F: np.ndarray, BB: np.ndarray, H: np.ndarray, H_F_inv: np.ndarray,
                n_kinds: int) -> tuple:
     """The step tables (A, Q, Lam, D, R, M) of :func:`bboxtune.filters.kf_cmn.cmn_tables_numpy` for G rows ``p`` =
@@ -190,23 +220,16 @@ def cmn_tables(p: np.ndarray, F: np.ndarray, BB: np.ndarray, H: np.ndarray, H_F_
     0 + t₀ + t₁ (``np.einsum``'s); 𝒬's double sum over j, k runs j-major, for one row (G = 1) as the k-sums added
     per j — the order ``np.einsum`` takes for three operands."""
     G = p.shape[0]
-    A, Qk = np.empty((n_kinds, 2, 2, G)), np.empty((n_kinds, 2, 2, G))
-    Lam, D, M = np.zeros((n_kinds, 2, G)), np.zeros((n_kinds, 2, G)), np.zeros((n_kinds, 2, G))
-    R = np.ones((n_kinds, G))
+    A, Qk, Lam, D, R, M = _empty_tables(n_kinds, G)
     Q, I_LD, I_LH = np.empty((2, 2)), np.empty((2, 2)), np.empty((2, 2))
     Gamma, D_z, Phi, L = np.empty(2), np.empty(2), np.empty(2), np.empty(2)
     for g in range(G):
         sigma_w, sigma_v, psi = p[g, 0], p[g, 1], p[g, 2]
         var_w, var_v = sigma_w * sigma_w, sigma_v * sigma_v
+        _plain_row(A, Qk, D, R, g, var_w, var_v / (1.0 - psi * psi), F, BB, H)  # the first y: var(v_n)
         for i in range(2):
             for j in range(2):
                 Q[i, j] = BB[i, j] * var_w  # Q = σ_w² B Bᵀ
-        for k in range(n_kinds):
-            for i in range(2):
-                for j in range(2):
-                    A[k, i, j, g], Qk[k, i, j, g] = F[i, j], Q[i, j]
-        D[UPDATE_Y, 0, g], D[UPDATE_Y, 1, g] = H[0], H[1]
-        R[UPDATE_Y, g] = var_v / (1.0 - psi * psi)  # the first y: var(v_n)
         for i in range(2):
             Gamma[i] = H_F_inv[i] * psi  # Γ = ψ H F⁻¹ (eq. 5)
             D_z[i] = H[i] - Gamma[i]  # D = H − Γ (eq. 5)

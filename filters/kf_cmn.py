@@ -70,7 +70,6 @@ Conventions
 
 from __future__ import annotations
 
-from functools import lru_cache
 from typing import Any, ClassVar, cast
 
 import numpy as np
@@ -87,7 +86,7 @@ from bboxtune.filters.kalman_core import (
     frame_kinds,
     plain_tables,
 )
-from bboxtune.filters.kf import TABLES
+from bboxtune.filters.kf import TABLES, axis_matrices
 from bboxtune.filters.model import StateSpaceModel
 from bboxtune.filters.validation import check_psi, check_sigma
 
@@ -170,7 +169,7 @@ def cmn_tables(axis: StateSpaceModel, p: np.ndarray, gaps: np.ndarray) -> StepTa
     one row), else from :func:`cmn_tables_numpy`."""
     n_kinds = UPDATE_Z + len(gaps)
     if jit.enabled():
-        F, BB, H, H_F_inv = _axis_matrices(axis)
+        F, BB, H, H_F_inv = axis_matrices(axis)
         tables = StepTables(*kalman_kernels.cmn_tables(np.ascontiguousarray(p, dtype=np.float64), F, BB, H, H_F_inv,
                                                        n_kinds))
     else:
@@ -180,16 +179,6 @@ def cmn_tables(axis: StateSpaceModel, p: np.ndarray, gaps: np.ndarray) -> StepTa
         D_g, R_g, M_g = gap_update(axis, sigma_w, sigma_v, psi, np.asarray(gaps[1:], dtype=float))
         tables.D[UPDATE_Z + 1:], tables.R[UPDATE_Z + 1:], tables.M[UPDATE_Z + 1:] = D_g, R_g, M_g
     return tables
-
-
-@lru_cache(maxsize=64)
-def _axis_matrices(axis: StateSpaceModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """F, B Bᵀ, H (the row) and H F⁻¹ of a two-state axis model, contiguous float64 (models are immutable)."""
-    F, H = np.array(axis.F, dtype=np.float64), np.array(axis.H[0], dtype=np.float64)
-    matrices = (F, axis.B @ axis.B.T, H, H @ np.linalg.inv(axis.F))
-    for a in matrices:
-        a.setflags(write=False)
-    return matrices
 
 
 def cmn_tables_numpy(axis: StateSpaceModel, p: np.ndarray, n_kinds: int) -> StepTables:

@@ -16,6 +16,7 @@ from bboxtune.filters import jit
 from bboxtune.filters import kalman_core as kc
 from bboxtune.filters import kalman_kernels as kk
 from bboxtune.filters.finite_check import first_nonfinite, first_nonfinite_numpy
+from bboxtune.filters.kf import axis_matrices
 from bboxtune.filters.kf_cmn import cmn_tables, differenced_kinds
 from tests.filters.test_cmn_gaps import runs_missing
 from tests.kernel_modes import both
@@ -177,6 +178,20 @@ def test_cmn_tables_kernel_equals_reference_bit_for_bit(seed: int, G: int, tau: 
         got, want = getattr(kernel, name), getattr(reference, name)
         assert got.shape == want.shape == (len(lengths) + kc.UPDATE_Z, *want.shape[1:])
         assert np.array_equal(got.view(np.uint64), want.view(np.uint64)), name
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**16), G=st.sampled_from([1, 2, 64]), tau=st.sampled_from([1.0, 0.05]))
+def test_kf_tables_kernel_equals_reference_bit_for_bit(seed: int, G: int, tau: float) -> None:
+    """KF's step tables from the kernel are ``plain_tables``' with Q = σ_w² B Bᵀ, R = σ_v², bit for bit."""
+    rng = np.random.default_rng(seed)
+    params = 10.0 ** rng.uniform(-13, 13, (G, 2))
+    axis = filters.constant_velocity(tau).axis()
+    want = kc.plain_tables(axis.F, (axis.B @ axis.B.T)[:, :, None] * params[:, 0] ** 2, params[:, 1] ** 2, axis.H[0])
+    got = kk.kf_tables(params, *axis_matrices(axis)[:3], kc.UPDATE_Z)
+    for name, table in zip(("A", "Q", "Lam", "D", "R", "M"), got, strict=True):
+        assert table.shape == getattr(want, name).shape
+        assert np.array_equal(table.view(np.uint64), getattr(want, name).view(np.uint64)), name
 
 
 @settings(max_examples=40, deadline=None)
