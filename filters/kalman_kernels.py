@@ -1,5 +1,5 @@
 """Compiled kernels of the Kalman family (:mod:`bboxtune.filters.kalman_core`, :mod:`bboxtune.filters.kf_cmn`): the frame
-kinds, KF-CMN's differencing, the gain recursion and the affine application.
+kinds, KF-CMN's differencing, the step tables of KF and KF-CMN, the gain recursion and the affine application.
 
 Each computes what its numpy reference computes (``kalman_core.frame_kinds_numpy``, ``kf_cmn.differenced_kinds``,
 ``kalman_core.gain_recursion``, ``kalman_core.apply_affine``): the same equations, in the same order of floating-point
@@ -11,6 +11,9 @@ tests/filters/test_kalman_kernels.py).
   only on its kind and the previous covariance). The frame the reference would stop at — the first multiple-of-8 frame
   (n % 8 == 7) by which every row repeats and no kind changes — is derived from the rows' stops, so the outputs match.
 * :func:`apply_affine` runs x_n = M_n x_{n−1} + g_n m_n channel by channel (the reference's frame-by-frame form).
+* :func:`kf_tables` and :func:`cmn_tables` build the step tables bit for bit as ``kalman_core.plain_tables`` and
+  ``kf_cmn.cmn_tables_numpy`` do (tested for 1 … 65 rows): a one-row table cost ~0.2 ms of numpy calls, which a
+  one-track call (a reseeded episode's rule run, a step) paid every time.
 """
 
 from __future__ import annotations
