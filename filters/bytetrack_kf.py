@@ -44,7 +44,7 @@ from __future__ import annotations
 
 from abc import abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
@@ -180,20 +180,23 @@ class BoxKF(Filter):
 
     def run(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """States (T, 8) or (B, T, 8) of boxes ``y`` (T, 4) or (B, T, 4), NaN rows = no detection (module docstring)."""
-        return self._filter(y, u, None, positions_only=False)[0]
+        return self._filter(y, u, None, positions_only=False, carried=False)[0]
 
     def positions(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """The boxes only, (T, 4) or (B, T, 4): ``run(y)[..., :4]`` without computing the rates."""
-        return self._filter(y, u, None, positions_only=True)[0]
+        return self._filter(y, u, None, positions_only=True, carried=False)[0]
 
     def run_from(self, y: np.ndarray, carry: Carry | None = None,
                  u: np.ndarray | None = None) -> tuple[np.ndarray, Carry]:
         """As :meth:`bboxtune.filters.base.Filter.run_from`; the carry holds the filter's own state (module docstring)."""
-        return self._filter(y, u, carry, positions_only=False)
+        states, end = self._filter(y, u, carry, positions_only=False, carried=True)
+        return states, cast(Carry, end)  # built: carried=True
 
     @limited_blas
-    def _filter(self, y: np.ndarray, u: np.ndarray | None, carry: Carry | None,
-                positions_only: bool) -> tuple[np.ndarray, Carry]:
+    def _filter(self, y: np.ndarray, u: np.ndarray | None, carry: Carry | None, positions_only: bool,
+                carried: bool) -> tuple[np.ndarray, Carry | None]:
+        """The states (or boxes only: ``positions_only``) of ``y`` from ``carry``, and the carry after the last frame
+        (None unless ``carried``: ``run`` and ``positions`` do not build it)."""
         Y, _, per_track, batched = self._inputs(y, u)
         check_boxes(Y)
         n_tracks, T, _ = Y.shape
@@ -218,6 +221,8 @@ class BoxKF(Filter):
             states[..., M:] /= self.model.tau
             self._check_began_finite(states, began, rows)
             ends.append(X)
+        if not carried:
+            return (out if batched else out[0]), None
         if T == 0:
             end_carry = carry if carry is not None else not_started(n_tracks, M)
         else:

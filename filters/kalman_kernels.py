@@ -1,5 +1,5 @@
 """Compiled kernels of the Kalman family (:mod:`bboxtune.filters.kalman_core`, :mod:`bboxtune.filters.kf_cmn`): the frame
-kinds, KF-CMN's differencing, the gain recursion and the affine application.
+kinds, KF-CMN's differencing, the step tables of KF and KF-CMN, the gain recursion and the affine application.
 
 Each computes what its numpy reference computes (``kalman_core.frame_kinds_numpy``, ``kf_cmn.differenced_kinds``,
 ``kalman_core.gain_recursion``, ``kalman_core.apply_affine``): the same equations, in the same order of floating-point
@@ -11,6 +11,9 @@ tests/filters/test_kalman_kernels.py).
   only on its kind and the previous covariance). The frame the reference would stop at — the first multiple-of-8 frame
   (n % 8 == 7) by which every row repeats and no kind changes — is derived from the rows' stops, so the outputs match.
 * :func:`apply_affine` runs x_n = M_n x_{n−1} + g_n m_n channel by channel (the reference's frame-by-frame form).
+* :func:`kf_tables` and :func:`cmn_tables` build the step tables bit for bit as ``kalman_core.plain_tables`` and
+  ``kf_cmn.cmn_tables_numpy`` do (tested for 1 … 65 rows): a one-row table cost ~0.2 ms of numpy calls, which a
+  one-track call (a reseeded episode's rule run, a step) paid every time.
 """
 
 from __future__ import annotations
@@ -178,6 +181,88 @@ def _affine_channels(by_row: np.ndarray, steady_from: int, row_of_channel: np.nd
             out[c, n, 0], out[c, n, 1] = p, v
     return out
 
+
+
+@jit.kernel
+def kf_tables(p: np.ndarray, F: np.ndarray, BB: np.ndarray, H: np.ndarray, n_kinds: int) -> tuple:
+    """The step tables (A, Q, Lam, D, R, M) of a plain KF (``kalman_core.plain_tables``) for G rows ``p`` = [σ_w, σ_v]
+    (G, 2) and ``n_kinds`` kinds, from the axis model's F (2, 2), B Bᵀ (2, 2) and H (2,): Q = σ_w² B Bᵀ, R = σ_v²."""
+    G = p.shape[0]
+    A, Q, Lam, D, R, M = _empty_tables(n_kinds, G)
+    for g in range(G):
+        _plain_row(A, Q, D, R, g, p[g, 0] * p[g, 0], p[g, 1] * p[g, 1], F, BB, H)
+    return A, Q, Lam, D, R, M
+
+
+@jit.kernel
+def _empty_tables(n_kinds: int, G: int) -> tuple:
+    """A, Q (n_kinds, 2, 2, G) to be filled; Lam, D, M (n_kinds, 2, G) 0; R (n_kinds, G) 1."""
+    return (np.empty((n_kinds, 2, 2, G)), np.empty((n_kinds, 2, 2, G)), np.zeros((n_kinds, 2, G)),
+            np.zeros((n_kinds, 2, G)), np.ones((n_kinds, G)), np.zeros((n_kinds, 2, G)))
+
+
+@jit.kernel
+def _plain_row(A: np.ndarray, Q: np.ndarray, D: np.ndarray, R: np.ndarray, g: int, var_w: float, var_y: float,
+               F: np.ndarray, BB: np.ndarray, H: np.ndarray) -> None:
+    """Row g of the plain KF's tables: every kind predicts with (F, Q = σ_w² B Bᵀ); UPDATE_Y updates with (H, var_y)."""
+    for k in range(A.shape[0]):
+        for i in range(2):
+            for j in range(2):
+                A[k, i, j, g], Q[k, i, j, g] = F[i, j], BB[i, j] * var_w
+    D[UPDATE_Y, 0, g], D[UPDATE_Y, 1, g] = H[0], H[1]
+    R[UPDATE_Y, g] = var_y
+
+
+@jit.kernel
+def cmn_tables(p: np.ndarray, F: np.ndarray, BB: np.ndarray, H: np.ndarray, H_F_inv: np.ndarray,
+               n_kinds: int) -> tuple:
+    """The step tables (A, Q, Lam, D, R, M) of :func:`bboxtune.filters.kf_cmn.cmn_tables_numpy` for G rows ``p`` =
+    [σ_w, σ_v, ψ] (G, 3) and ``n_kinds`` kinds, from the axis model's F (2, 2), B Bᵀ (2, 2), H (2,) and H F⁻¹ (2,):
+    the plain KF's tables for every kind, UPDATE_Y on y with var(v_n) = σ_v²/(1 − ψ²), UPDATE_Z Algorithm 1's (the
+    gap kinds are left to the caller). The reference's operations in its order: a sum over one index is
+    0 + t₀ + t₁ (``np.einsum``'s); 𝒬's double sum over j, k runs j-major, for one row (G = 1) as the k-sums added
+    per j — the order ``np.einsum`` takes for three operands."""
+    G = p.shape[0]
+    A, Qk, Lam, D, R, M = _empty_tables(n_kinds, G)
+    Q, I_LD, I_LH = np.empty((2, 2)), np.empty((2, 2)), np.empty((2, 2))
+    Gamma, D_z, Phi, L = np.empty(2), np.empty(2), np.empty(2), np.empty(2)
+    for g in range(G):
+        sigma_w, sigma_v, psi = p[g, 0], p[g, 1], p[g, 2]
+        var_w, var_v = sigma_w * sigma_w, sigma_v * sigma_v
+        _plain_row(A, Qk, D, R, g, var_w, var_v / (1.0 - psi * psi), F, BB, H)  # the first y: var(v_n)
+        for i in range(2):
+            for j in range(2):
+                Q[i, j] = BB[i, j] * var_w  # Q = σ_w² B Bᵀ
+        for i in range(2):
+            Gamma[i] = H_F_inv[i] * psi  # Γ = ψ H F⁻¹ (eq. 5)
+            D_z[i] = H[i] - Gamma[i]  # D = H − Γ (eq. 5)
+        for i in range(2):
+            Phi[i] = 0.0 + Q[i, 0] * Gamma[0] + Q[i, 1] * Gamma[1]  # Φ = Q Γᵀ
+        R_bar = (0.0 + Gamma[0] * Phi[0] + Gamma[1] * Phi[1]) + var_v  # R̄ = Γ Φ + σ_v² (eq. 6)
+        HPhi_R = (0.0 + H[0] * Phi[0] + H[1] * Phi[1]) + var_v
+        for i in range(2):
+            L[i] = Phi[i] / HPhi_R  # Λ = Φ (H Φ + σ_v²)⁻¹ (eq. 10)
+        for i in range(2):
+            for j in range(2):
+                eye = 1.0 if i == j else 0.0
+                I_LD[i, j], I_LH[i, j] = eye - L[i] * D_z[j], eye - L[i] * H[j]
+        for i in range(2):
+            for k in range(2):
+                A[UPDATE_Z, i, k, g] = 0.0 + I_LD[i, 0] * F[0, k] + I_LD[i, 1] * F[1, k]  # A = (I − Λ D) F (eq. 8)
+        for i in range(2):
+            for m in range(2):  # 𝒬 = (I − Λ H) Q (I − Λ D)ᵀ (eq. 11)
+                q = 0.0
+                for j in range(2):
+                    if G == 1:
+                        q += I_LH[i, j] * Q[j, 0] * I_LD[m, 0] + I_LH[i, j] * Q[j, 1] * I_LD[m, 1]
+                    else:
+                        q = q + I_LH[i, j] * Q[j, 0] * I_LD[m, 0]
+                        q = q + I_LH[i, j] * Q[j, 1] * I_LD[m, 1]
+                Qk[UPDATE_Z, i, m, g] = q
+        Lam[UPDATE_Z, 0, g], Lam[UPDATE_Z, 1, g] = L[0], L[1]
+        D[UPDATE_Z, 0, g], D[UPDATE_Z, 1, g] = D_z[0], D_z[1]
+        R[UPDATE_Z, g] = R_bar
+    return A, Qk, Lam, D, R, M
 
 
 def differenced_kinds(kinds: np.ndarray, z: np.ndarray, finite: np.ndarray, y_before: np.ndarray,

@@ -34,12 +34,15 @@ array([[1. , 0. ],
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import lru_cache
 from typing import Any, ClassVar
 
 import numpy as np
 
+from bboxtune.filters import jit, kalman_kernels
 from bboxtune.filters.base import AxisCarry, Filter
 from bboxtune.filters.kalman_core import (
+    UPDATE_Z,
     FramePrior,
     StepTables,
     channel_start,
@@ -48,6 +51,7 @@ from bboxtune.filters.kalman_core import (
     frame_kinds,
     plain_tables,
 )
+from bboxtune.filters.model import StateSpaceModel
 from bboxtune.filters.validation import check_sigma
 
 
@@ -77,6 +81,9 @@ class KF(FramePrior, Filter):
         row_params = np.stack([params["sigma_w"], params["sigma_v"]], axis=1)
 
         def tables(p: np.ndarray) -> StepTables:
+            if jit.enabled():  # the same tables, compiled (~2 µs instead of ~40 µs for one row)
+                F, BB, H, _ = axis_matrices(axis)
+                return StepTables(*kalman_kernels.kf_tables(np.ascontiguousarray(p, dtype=np.float64), F, BB, H, UPDATE_Z))
             Q = (axis.B @ axis.B.T)[:, :, None] * p[:, 0] ** 2  # Q = σ_w² B Bᵀ
             return plain_tables(axis.F, Q, p[:, 1] ** 2, axis.H[0])  # R = σ_v²
 
@@ -84,6 +91,15 @@ class KF(FramePrior, Filter):
                                         lambda p: TABLES.get(("kf", axis.F.tobytes(), axis.B.tobytes(), p), lambda: tables(p)))
         return states, AxisCarry(x=states[:, -1], P=P_end)
 
+
+@lru_cache(maxsize=64)
+def axis_matrices(axis: StateSpaceModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """F, B Bᵀ, H (the row) and H F⁻¹ of a two-state axis model, contiguous float64 (models are immutable)."""
+    F, H = np.array(axis.F, dtype=np.float64), np.array(axis.H[0], dtype=np.float64)
+    matrices = (F, axis.B @ axis.B.T, H, H @ np.linalg.inv(axis.F))
+    for a in matrices:
+        a.setflags(write=False)
+    return matrices
 
 class RecentTables:
     """The step tables of the last ``size`` keys of at most ``max_rows`` rows each: a tracker filters one frame per call

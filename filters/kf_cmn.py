@@ -86,7 +86,7 @@ from bboxtune.filters.kalman_core import (
     frame_kinds,
     plain_tables,
 )
-from bboxtune.filters.kf import TABLES
+from bboxtune.filters.kf import TABLES, axis_matrices
 from bboxtune.filters.model import StateSpaceModel
 from bboxtune.filters.validation import check_psi, check_sigma
 
@@ -163,12 +163,32 @@ def differenced_kinds(kinds: np.ndarray, z: np.ndarray, finite: np.ndarray, y_be
 def cmn_tables(axis: StateSpaceModel, p: np.ndarray, gaps: np.ndarray) -> StepTables:
     """Step tables of G rows ``p`` = [σ_w, σ_v, ψ] (G, 3): the KF kinds WAIT … UPDATE_Y (the first measurement:
     an update on y with var(v_n) = σ_v²/(1 − ψ²)), then per gap length ``gaps[i]`` (n,) the kind UPDATE_Z + i:
-    [Shmaliy-CMN] Algorithm 1 for gaps[0] = 0, the time-correlated update (G6) across a gap (matrices row-last)."""
+    [Shmaliy-CMN] Algorithm 1 for gaps[0] = 0, the time-correlated update (G6) across a gap (matrices row-last).
+    All but the gap kinds come from the compiled :func:`bboxtune.filters.kalman_kernels.cmn_tables` where
+    :func:`bboxtune.filters.jit.enabled` (bit for bit :func:`cmn_tables_numpy`'s, in ~2 µs instead of ~0.2 ms for
+    one row), else from :func:`cmn_tables_numpy`."""
+    n_kinds = UPDATE_Z + len(gaps)
+    if jit.enabled():
+        F, BB, H, H_F_inv = axis_matrices(axis)
+        tables = StepTables(*kalman_kernels.cmn_tables(np.ascontiguousarray(p, dtype=np.float64), F, BB, H, H_F_inv,
+                                                       n_kinds))
+    else:
+        tables = cmn_tables_numpy(axis, p, n_kinds)
+    if len(gaps) > 1:  # across g >= 1 missing frames: predict with (F, Q), the time-correlated update (G6)
+        sigma_w, sigma_v, psi = p.T
+        D_g, R_g, M_g = gap_update(axis, sigma_w, sigma_v, psi, np.asarray(gaps[1:], dtype=float))
+        tables.D[UPDATE_Z + 1:], tables.R[UPDATE_Z + 1:], tables.M[UPDATE_Z + 1:] = D_g, R_g, M_g
+    return tables
+
+
+def cmn_tables_numpy(axis: StateSpaceModel, p: np.ndarray, n_kinds: int) -> StepTables:
+    """The tables of :func:`cmn_tables` in numpy (the reference) with ``n_kinds`` kinds, all but the gap kinds
+    UPDATE_Z + 1 … filled in."""
     sigma_w, sigma_v, psi = p.T
     F, H, I = axis.F[:, :, None], axis.H[0][:, None], np.eye(2)[:, :, None]
     Q = (axis.B @ axis.B.T)[:, :, None] * sigma_w**2  # Q = σ_w² B Bᵀ
     R = sigma_v**2  # R = σ_ξ²
-    tables = plain_tables(axis.F, Q, R / (1.0 - psi**2), axis.H[0], UPDATE_Z + len(gaps))  # first y: var(v_n)
+    tables = plain_tables(axis.F, Q, R / (1.0 - psi**2), axis.H[0], n_kinds)  # first y: var(v_n)
     Gamma = (axis.H[0] @ np.linalg.inv(axis.F))[:, None] * psi  # Γ = ψ H F⁻¹ (eq. 5)
     D = H - Gamma  # D = H − Γ (eq. 5)
     Phi = np.einsum("ijg,jg->ig", Q, Gamma)  # Φ = B Q Bᵀ Γᵀ (below eq. 7)
@@ -182,9 +202,6 @@ def cmn_tables(axis: StateSpaceModel, p: np.ndarray, gaps: np.ndarray) -> StepTa
     tables.Lam[UPDATE_Z] = Lam
     tables.D[UPDATE_Z] = D
     tables.R[UPDATE_Z] = R_bar
-    if len(gaps) > 1:  # across g >= 1 missing frames: predict with (F, Q), the time-correlated update (G6)
-        D_g, R_g, M_g = gap_update(axis, sigma_w, sigma_v, psi, np.asarray(gaps[1:], dtype=float))
-        tables.D[UPDATE_Z + 1:], tables.R[UPDATE_Z + 1:], tables.M[UPDATE_Z + 1:] = D_g, R_g, M_g
     return tables
 
 

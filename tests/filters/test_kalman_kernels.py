@@ -16,8 +16,10 @@ from bboxtune.filters import jit
 from bboxtune.filters import kalman_core as kc
 from bboxtune.filters import kalman_kernels as kk
 from bboxtune.filters.finite_check import first_nonfinite, first_nonfinite_numpy
+from bboxtune.filters.kf import axis_matrices
 from bboxtune.filters.kf_cmn import cmn_tables, differenced_kinds
 from tests.filters.test_cmn_gaps import runs_missing
+from tests.kernel_modes import both
 
 AXIS = filters.constant_velocity(0.05).axis()
 RTOL = 1e-9
@@ -157,6 +159,39 @@ def test_gain_kernel_stops_at_the_references_steady_frame(G: int, kind: int) -> 
     kinds[-1, 200:230] = kc.PREDICT
     assert 230 <= kc.gain_recursion(kinds, tables, P_start)[1] < 400
     assert_same_gains(kinds, tables, P_start)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**16), G=st.sampled_from([1, 2, 3, 64, 65]), tau=st.sampled_from([1.0, 0.05, 1 / 30]),
+       gaps=st.booleans())
+def test_cmn_tables_kernel_equals_reference_bit_for_bit(seed: int, G: int, tau: float, gaps: bool) -> None:
+    """KF-CMN's step tables from the kernel are the numpy reference's bit for bit (one row, whose three-operand
+    einsum sums in another order, and several; ψ = 0 rows, σ over 26 decades, gap kinds filled in by numpy): the
+    env's episodes do not depend on ``$BBOXTUNE_JIT`` through them."""
+    rng = np.random.default_rng(seed)
+    params = np.stack([10.0 ** rng.uniform(-13, 13, G), 10.0 ** rng.uniform(-13, 13, G),
+                       np.where(rng.random(G) < 0.2, 0.0, rng.uniform(0.0, 0.99, G))], axis=1)
+    lengths = np.array([0, 1, 7]) if gaps else np.zeros(1, np.int64)
+    axis = filters.constant_velocity(tau).axis()
+    kernel, reference = both(lambda: cmn_tables(axis, params, lengths))
+    for name in ("A", "Q", "Lam", "D", "R", "M"):
+        got, want = getattr(kernel, name), getattr(reference, name)
+        assert got.shape == want.shape == (len(lengths) + kc.UPDATE_Z, *want.shape[1:])
+        assert np.array_equal(got.view(np.uint64), want.view(np.uint64)), name
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**16), G=st.sampled_from([1, 2, 64]), tau=st.sampled_from([1.0, 0.05]))
+def test_kf_tables_kernel_equals_reference_bit_for_bit(seed: int, G: int, tau: float) -> None:
+    """KF's step tables from the kernel are ``plain_tables``' with Q = σ_w² B Bᵀ, R = σ_v², bit for bit."""
+    rng = np.random.default_rng(seed)
+    params = 10.0 ** rng.uniform(-13, 13, (G, 2))
+    axis = filters.constant_velocity(tau).axis()
+    want = kc.plain_tables(axis.F, (axis.B @ axis.B.T)[:, :, None] * params[:, 0] ** 2, params[:, 1] ** 2, axis.H[0])
+    got = kk.kf_tables(params, *axis_matrices(axis)[:3], kc.UPDATE_Z)
+    for name, table in zip(("A", "Q", "Lam", "D", "R", "M"), got, strict=True):
+        assert table.shape == getattr(want, name).shape
+        assert np.array_equal(table.view(np.uint64), getattr(want, name).view(np.uint64)), name
 
 
 @settings(max_examples=40, deadline=None)
