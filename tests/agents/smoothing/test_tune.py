@@ -242,3 +242,15 @@ def test_smooth_checks_and_converts_the_track_once(gate_margin: float | None, mo
     assert calls == {"check_boxes": 1, "check_tau": 1, "xywh_to_cxcywh": 1}
     if gate_margin is not None:
         np.testing.assert_array_equal(out, boxes)
+
+
+def test_tune_checked_is_tune_without_the_checks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A tracker's histories are checked detections: tune_checked gives tune's parameters and checks nothing again."""
+    tuner = load_pretrained("mot15_det")
+    boxes = _track(4, T=40)
+    boxes[[3, 17, 18]] = np.nan  # missed detections
+    want = tuner.tune(boxes, 0.1)
+    for name in ("check_boxes", "check_tau"):
+        monkeypatch.setattr(tune_module, name, lambda *args, _name=name: pytest.fail(f"{_name} called"))
+    assert tuner.tune_checked(boxes, 0.1) == want
+    assert want != tuner.tune_checked(boxes[:20], 0.1)  # the parameters depend on the track
