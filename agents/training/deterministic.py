@@ -19,6 +19,8 @@ shipped tuners and random observations):
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import torch as th
 from gymnasium import spaces
@@ -55,15 +57,16 @@ def deterministic_actions(policy: BasePolicy, obs: np.ndarray) -> np.ndarray:
 def _forward(layer: nn.Module, x: th.Tensor) -> th.Tensor:
     """``layer(x)``; a ``Sequential`` of ``Linear`` / ``Tanh`` / ``ReLU`` (SB3's MLPs) by the functions their
     ``forward`` calls, without ``Module.__call__``'s hook dispatch (tens of µs a layer on a busy machine)."""
-    kind = type(layer)
+    kind = type(layer)  # exact types: a subclass may override forward
     if kind is nn.Sequential:
-        for inner in layer:
+        for inner in cast(nn.Sequential, layer):
             x = _forward(inner, x)
         return x
     if kind is nn.Linear:
-        return functional.linear(x, layer.weight, layer.bias)
+        linear = cast(nn.Linear, layer)
+        return functional.linear(x, linear.weight, linear.bias)
     if kind is nn.Tanh:
         return th.tanh(x)
-    if kind is nn.ReLU and not layer.inplace:
+    if kind is nn.ReLU and not cast(nn.ReLU, layer).inplace:
         return functional.relu(x)
-    return layer(x)
+    return cast(th.Tensor, layer(x))
