@@ -80,3 +80,48 @@ def run_boxes(z: np.ndarray, detected: np.ndarray, first: np.ndarray, start: np.
                     output[0, c, j] += output[1, c, j]
                 for i in range(k):
                     means[t, i, c, j] = output[i, c, j]
+
+
+@jit.kernel
+def bytetrack_positions(Y: np.ndarray, weight_position: np.ndarray, weight_velocity: np.ndarray, aspect: np.ndarray,
+                        aspect_rate: np.ndarray, aspect_measurement: np.ndarray, out: np.ndarray) -> bool:
+    """:meth:`bboxtune.filters.bytetrack_kf.ByteTrackKF.positions` of checked boxes ``Y`` (n, T, 4) cx, cy, w, h (NaN rows:
+    no detection) from the start, with the per-track parameters (n,) σ_p, σ_v, s_a, s_ȧ, s_m: ByteTrack's measured
+    coordinates (x, y, a = w / h, h) and noise pairs built as ``ByteTrackKF._measure`` / ``_noise`` build them, then
+    :func:`run_boxes` on all tracks at once, then the boxes (a h for w) in ``out`` (n, T, 4). Returns whether every
+    estimate from a track's first detection on is finite (False: the caller reports the failure)."""
+    n, T, M = Y.shape
+    z = np.zeros((T, M, n))
+    detected = np.zeros((T, n), dtype=np.bool_)
+    first = np.full(n, -1, dtype=np.int64)
+    start, process = np.zeros((2, 2, M, n)), np.zeros((2, 2, M, n))
+    measurement = np.zeros((2, M, n))
+    for j in range(n):
+        for t in range(T):
+            if not np.isnan(Y[j, t, 0]):
+                detected[t, j] = True
+                z[t, 0, j], z[t, 1, j], z[t, 3, j] = Y[j, t, 0], Y[j, t, 1], Y[j, t, 3]
+                z[t, 2, j] = Y[j, t, 2] / Y[j, t, 3]
+                if first[j] < 0:
+                    first[j] = t
+        for c in range(M):  # the height's coordinates x, y, h (mask 1) and the aspect a (mask 0), as _noise's columns
+            on_height, on_aspect = (0.0, 1.0) if c == 2 else (1.0, 0.0)
+            w_p, w_v = on_height * weight_position[j], on_height * weight_velocity[j]
+            s_a, s_r = on_aspect * aspect[j], on_aspect * aspect_rate[j]
+            start[0, 0, c, j], start[0, 1, c, j], start[1, 0, c, j], start[1, 1, c, j] = 2 * w_p, 10 * w_v, s_a, s_r
+            process[0, 0, c, j], process[0, 1, c, j], process[1, 0, c, j], process[1, 1, c, j] = w_p, w_v, s_a, s_r
+            measurement[0, c, j], measurement[1, c, j] = w_p, on_aspect * aspect_measurement[j]
+    fixed = np.array([not start[0].any(), not process[0].any(), not measurement[0].any()])
+    X = np.full((5, M, n), np.nan)
+    means = np.empty((T, 1, M, n))
+    run_boxes(z, detected, first, start, process, measurement, fixed, False, np.ones((M, n)), X, X[:2], means)
+    finite = True
+    for j in range(n):
+        for t in range(T):
+            for c in range(M):
+                out[j, t, c] = means[t, 0, c, j]
+            out[j, t, 2] = means[t, 0, 2, j] * means[t, 0, 3, j]
+            if 0 <= first[j] <= t:
+                for c in range(M):
+                    finite &= np.isfinite(out[j, t, c])
+    return finite

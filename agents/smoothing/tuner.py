@@ -257,7 +257,13 @@ class Tuner:
 
     def tune(self, boxes: ArrayLike, tau: Any) -> dict[str, float | int]:
         """:meth:`params` of the track ``boxes`` at frame interval ``tau``."""
-        return self.params(self.observe(boxes, tau))
+        return self.tune_checked(check_boxes(boxes), check_tau(tau))
+
+    def tune_checked(self, xywh: np.ndarray, tau: float) -> dict[str, float | int]:
+        """:meth:`tune` of a track that already passed :func:`check_boxes` (float (T, 4) xywh px) and :func:`check_tau`,
+        without checking it again: for a caller that checked it itself (a tracker re-tuning its tracks from their
+        histories of checked detections, many times a second)."""
+        return self.params(self._observe(xywh, tau))
 
     def smooth(self, boxes: ArrayLike, tau: Any, params: dict[str, float | int] | None = None) -> np.ndarray:
         """The track filtered by the back end with ``params`` (default: :meth:`tune`'s) and the tuner's

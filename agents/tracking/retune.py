@@ -4,7 +4,11 @@
 for frames without one; never a future frame, never a ground truth) and says which tracks are due: every
 ``window`` frames of a track's life, from its ``first``-th frame on. The chosen parameters take effect from the
 next frame on — as ``bboxtune/FilterRetune-v0`` re-tunes every W frames; before its first re-tune a track runs with
-the bank's parameters (the stock values). Two re-tuners (:class:`Retuner`) choose the parameters:
+the bank's parameters (the stock values). A history holds detections the tracker checked
+(:func:`bboxtune.agents.tracking.sort_tracker.check_detections`: :func:`bboxtune.agents.smoothing.tuner.check_boxes`'s
+rule) and NaN rows, at least ``first`` >= :data:`~bboxtune.agents.smoothing.tuner.MIN_FRAMES` frames, so
+:class:`CausalRetune` passes it to :meth:`~bboxtune.agents.smoothing.tuner.Tuner.tune_checked` once it holds
+:data:`~bboxtune.agents.smoothing.tuner.MIN_MEASURED` detections. Two re-tuners (:class:`Retuner`) choose the parameters:
 
 * :class:`CausalRetune`: a trained tuner (:class:`bboxtune.agents.smoothing.tuner.Tuner`, e.g. the pretrained
   ``mot15_det``) sees the history; a track with fewer than two matched detections in view keeps its parameters;
@@ -98,7 +102,7 @@ class CausalRetune(TrackHistories):
             seen = self.seen(int(row))
             if int(np.isfinite(seen[:, 0]).sum()) < MIN_MEASURED:
                 continue
-            params = self.tuner.tune(seen, self.tau)
+            params = self.tuner.tune_checked(seen, self.tau)  # the tracker's checked detections (module docstring)
             chosen.append(int(row))
             for name in values:
                 values[name].append(float(params[name]))

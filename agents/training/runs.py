@@ -40,6 +40,7 @@ from bboxtune.agents.readers import read_yaml
 from bboxtune.agents.splits import SplitSeeds, train_seeds
 from bboxtune.agents.training.algos import ALGOS, RECURRENT
 from bboxtune.agents.training.batched import TuneVecEnv
+from bboxtune.agents.training.deterministic import deterministic_actions
 from bboxtune.agents.training.hyperparams import load_hyperparams
 from bboxtune.agents.training.run_files import RunError, load_normalizer
 from bboxtune.agents.training.safe_load import load_model
@@ -271,8 +272,10 @@ class SB3Policy(ObsPolicy):
 
     def predict(self, obs: np.ndarray) -> np.ndarray:
         obs = self._normalized(obs)
-        starts = np.ones(len(obs), dtype=bool) if self.recurrent else None
-        actions, _ = self.model.predict(obs, episode_start=starts, deterministic=True)
+        if self.recurrent:
+            actions, _ = self.model.predict(obs, episode_start=np.ones(len(obs), dtype=bool), deterministic=True)
+        else:  # SB3's deterministic predict, bit for bit, without its per-call overhead
+            actions = deterministic_actions(self.model.policy, obs)
         return np.asarray(actions, dtype=np.float64).reshape(len(obs), -1)
 
     def begin_episode(self) -> None:

@@ -373,3 +373,20 @@ def test_a_tracker_refuses_a_gap_policy() -> None:
     kf.start(np.array([[50.0, 60.0, 20.0, 40.0]]))
     with pytest.raises(ValueError, match="gap_size_decay=0.0"):
         kf.set_params(np.array([0]), {"gap_size_decay": 0.0})
+
+
+def test_compiled_positions_leave_a_non_finite_estimate_to_the_recursion(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The kernel of ``positions`` reports a non-finite estimate after a track's start; the recursion then runs and
+    raises its error naming the track and frame (here: it runs, and gives the same boxes)."""
+    y = boxes(3, 40, 21)
+    flt = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4), **random_params(3, 22))
+    calls: list[int] = []
+
+    def failing(Y: np.ndarray, *args: np.ndarray) -> bool:
+        calls.append(len(Y))
+        return False
+
+    want = flt.positions(y)
+    monkeypatch.setattr(filters.box_kf_kernels, "bytetrack_positions", failing)
+    np.testing.assert_array_equal(flt.positions(y), want)
+    assert calls == [3]

@@ -279,3 +279,15 @@ def test_bad_backend_params_in_a_config_name_the_file(tmp_path):
     config.write_text(config.read_text().replace("gap_size_decay: 0.0", "gap_size_decay: -1.0"))
     with pytest.raises(RunError, match="config.yml: backend_params: gap_size_decay=-1.0 is out of range"):
         Tuner.from_run(run)
+
+
+def test_tune_checked_is_tune_without_the_checks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A tracker's histories are checked detections: tune_checked gives tune's parameters and checks nothing again."""
+    tuner = load_pretrained("mot15_det")
+    boxes = _track(4, T=40)
+    boxes[[3, 17, 18]] = np.nan  # missed detections
+    want = tuner.tune(boxes, 0.1)
+    for name in ("check_boxes", "check_tau"):
+        monkeypatch.setattr(tune_module, name, lambda *args, _name=name: pytest.fail(f"{_name} called"))
+    assert tuner.tune_checked(boxes, 0.1) == want
+    assert want != tuner.tune_checked(boxes[:20], 0.1)  # the parameters depend on the track

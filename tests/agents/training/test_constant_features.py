@@ -3,6 +3,7 @@ instead of being divided by √ε and saturated by VecNormalize (the sim → OTB
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import Any
 
 import gymnasium as gym
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from bboxtune.agents.training import runs
 from bboxtune.agents.training.runs import SB3Policy, constant_features, describe_held_features, hold_constant_features
 
 MEAN = np.array([0.0, np.log(500.0), 1.0])  # feature 1: log_n_frames of 500-frame training tracks
@@ -32,14 +34,6 @@ def _normalizer(var: np.ndarray = VAR, count: float = 1e5) -> VecNormalize:
     norm = VecNormalize(DummyVecEnv([_BoxEnv]), training=False, norm_reward=False)
     norm.obs_rms.mean, norm.obs_rms.var, norm.obs_rms.count = MEAN.copy(), var.copy(), count
     return norm
-
-
-class _RecordingModel:
-    """Stands in for an SB3 model: returns the first normalised feature as the action, keeps what it was given."""
-
-    def predict(self, obs: np.ndarray, **_: Any) -> tuple[np.ndarray, None]:
-        self.seen = np.array(obs)
-        return obs[:, :1], None
 
 
 def test_a_constant_feature_is_held_and_the_others_pass_through() -> None:
@@ -77,12 +71,18 @@ def test_a_short_training_run_is_judged_net_of_the_running_statistics_prior(step
     assert constant_features(norm).tolist() == [False, True, False]
 
 
-def test_sb3_policy_feeds_the_held_features_to_the_model() -> None:
-    model = _RecordingModel()
-    policy = SB3Policy(model, _normalizer(), "ppo")  # type: ignore[arg-type]
+def test_sb3_policy_feeds_the_held_features_to_the_model(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: list[np.ndarray] = []
+
+    def recording(policy: Any, obs: np.ndarray) -> np.ndarray:  # the first normalised feature as the action
+        seen.append(np.array(obs))
+        return obs[:, :1]
+
+    monkeypatch.setattr(runs, "deterministic_actions", recording)
+    policy = SB3Policy(SimpleNamespace(policy=None), _normalizer(), "ppo")  # type: ignore[arg-type]
     policy.predict(np.array([[0.5, np.log(100.0), 1.2]], dtype=np.float32))
-    assert model.seen[0, 1] == pytest.approx(0.0, abs=1e-3)
-    assert model.seen[0, 0] == pytest.approx(0.5, abs=1e-3)
+    assert seen[0][0, 1] == pytest.approx(0.0, abs=1e-3)
+    assert seen[0][0, 0] == pytest.approx(0.5, abs=1e-3)
 
 
 def test_summaries_name_the_held_inputs_per_tuner() -> None:
