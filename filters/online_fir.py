@@ -13,6 +13,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from bboxtune.filters import jit, online_fir_kernels
 from bboxtune.filters.base import Filter
 from bboxtune.filters.fir_core import FIRFilter
 from bboxtune.filters.online_carry import M, PerTrack, channel_params, check_births, check_rows
@@ -133,8 +134,11 @@ class OnlineFIR(PerTrack):
         self._y = self._y[index]
         if len(index) == 0:
             self._length = 0
+        windows = self._windows
         self._keep_params(index)
         self._predicted = None if predicted is None else predicted[index]
+        if windows is not None and len(index):  # the kept tracks' groups (the groups themselves unchanged)
+            self._windows = windows.taken((index[:, None] * M + np.arange(M)).ravel())
 
 
 class WindowGroups:
@@ -160,41 +164,63 @@ class WindowGroups:
         out.length = np.concatenate([self.length, np.full(channels, length, dtype=self.length.dtype)])
         return out
 
+    def taken(self, channels: np.ndarray) -> WindowGroups:
+        """These windows for the channels ``channels`` (an int array) only, in that order."""
+        out = copy.copy(self)
+        out.group, out.length = self.group[channels], self.length[channels]
+        return out
 
     def newest_positions(self, z: np.ndarray, channels: np.ndarray | None = None) -> np.ndarray:
         """The position estimate (C,) at the last frame of channels ``z`` (C, S) (frame 0 = each one's first; of the
         channels ``channels`` (C,), default all): what ``f.positions`` gives there — the full window, the start-up
         window (frames 0 … S − 1) or the window with its missing samples dropped, by the same gains; the latest
-        measurement where the window does not determine the state (NaN before any)."""
-        C, S = z.shape
+        measurement where the window does not determine the state (NaN before any). Compiled kernels
+        (:mod:`bboxtune.filters.online_fir_kernels`) where :func:`bboxtune.filters.jit.enabled`, else numpy."""
+        S = z.shape[1]
         group = self.group if channels is None else self.group[channels]
         lengths = np.minimum(self.length if channels is None else self.length[channels], S)  # shorter: start-up
         L = int(lengths.max())
         window = z[:, S - L:]
-        masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])  # right-aligned windows, their samples
         n_groups = len(self.group_keys)
+        compiled = jit.enabled()
         if 2 * L + n_groups.bit_length() <= 62:  # a window kind per (group, length, mask) in 63 bits
-            bits = np.int64(1) << np.arange(L, dtype=np.int64)
-            codes = ((masks @ bits) + (lengths.astype(np.int64) << L)) * n_groups + group
+            if compiled:
+                first, kind = online_fir_kernels.window_kinds(window, lengths, group, n_groups)
+            else:
+                masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])  # right-aligned windows
+                bits = np.int64(1) << np.arange(L, dtype=np.int64)
+                codes = ((masks @ bits) + (lengths.astype(np.int64) << L)) * n_groups + group
+                _, first, kind = np.unique(codes, return_index=True, return_inverse=True)
         else:
-            codes = np.unique(np.column_stack([group, lengths, np.packbits(masks, axis=1)]), axis=0,
-                              return_inverse=True)[1].reshape(-1)
-        unique, first, kind = np.unique(codes, return_index=True, return_inverse=True)
-        W = np.zeros((len(unique), L))
+            masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])
+            _, first, kind = np.unique(np.column_stack([group, lengths, np.packbits(masks, axis=1)]), axis=0,
+                                       return_index=True, return_inverse=True)
+        kind = kind.reshape(-1)
+        W = np.zeros((len(first), L))
         for u, i in enumerate(first.tolist()):
-            W[u, L - lengths[i]:] = self._gain(masks[i, L - lengths[i]:], int(group[i]))
-        W = W[kind.reshape(-1)]
+            start = L - int(lengths[i])
+            W[u, start:] = self._gain(~np.isnan(window[i, start:]), int(group[i]))
+        if compiled:
+            out, failed_at = online_fir_kernels.newest_estimates(W, kind, window, lengths, z)
+            if failed_at >= 0:
+                raise FloatingPointError(self._no_estimate(failed_at))
+            return out
+        W = W[kind]
+        masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])
         out = np.einsum("pl,pl->p", W, np.where(masks, window, 0.0))
         failed = ~np.isnan(W[:, -1]) & np.isnan(out)
         if failed.any():
-            raise FloatingPointError(f"{self.f.name}: no finite estimate for channel {np.argmax(failed)} although its "
-                                     "window determines the state — please report this input")
+            raise FloatingPointError(self._no_estimate(int(np.argmax(failed))))
         held = np.isnan(out)  # undetermined windows: the latest measurement of the span (NaN before any)
         if held.any():
             valid = ~np.isnan(z[held])
             last = S - 1 - np.argmax(valid[:, ::-1], axis=1)
             out[held] = np.where(valid.any(axis=1), z[held, last], np.nan)
         return out
+
+    def _no_estimate(self, channel: int) -> str:
+        return (f"{self.f.name}: no finite estimate for channel {channel} although its window determines the state — "
+                "please report this input")
 
     def _gain(self, mask: np.ndarray, group: int) -> np.ndarray:
         """The position gain (L,) of window ``mask`` (L,) of gain group ``group``, NaN where it does not determine the
