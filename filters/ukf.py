@@ -131,8 +131,8 @@ class UKF(Filter):
         camera = np.arange(C) % M < self.camera_coordinates
         out, x_end, P_end = np.empty((C, T, 2)), np.empty((C, 2)), np.empty((C, 2, 2))
         c_end = P_c_end = None
-        plain = ~camera
-        if plain.any():  # the two-state model: gains once per row, then affine maps (kalman_core)
+        plain: np.ndarray | slice = ~camera if camera.any() else slice(None)  # all channels: views, not copies
+        if C and self.camera_coordinates < M:  # the two-state model: gains once per row, then affine maps (kalman_core)
             rows = np.stack([params[k][plain] for k in ("sigma_w", "sigma_v", "alpha", "beta", "kappa")], axis=1)
             out[plain], P_end[plain] = filter_channels(
                 np.where(finite, z, 0.0)[plain], kinds[plain], rows, x_start[plain], P_start[plain],
