@@ -38,19 +38,25 @@ class OnlineFIR(PerTrack):
         self._predicted: np.ndarray | None = None  # (n, 4) the next frame's estimates without detections, if known
         self._predicted_reach = 0  # the reach they were computed with
         self._template: tuple[tuple, int] | None = None  # template_window(f), once
+        self._reach_all: int | None = None  # _reach of every live track (when their parameters change)
 
     def _changed(self) -> None:
         super()._changed()
-        self._windows = self._predicted = None
+        self._windows = self._predicted = self._reach_all = None
 
     def _groups(self) -> WindowGroups:
         if self._windows is None:
             self._windows = WindowGroups(cast(FIRFilter, self.f), self._channel_params(), self._gains)
         return self._windows
 
-    def _reach(self, rows: slice | np.ndarray) -> int:
-        """History frames a continued run of the tracks ``rows`` reads (:func:`bboxtune.filters.history.continue_span`)."""
-        return int(np.max(self.params["horizon"][rows])) + 1
+    def _reach(self, rows: np.ndarray | None = None) -> int:
+        """History frames a continued run of the tracks ``rows`` (default: all live ones) reads
+        (:func:`bboxtune.filters.history.continue_span`)."""
+        if rows is not None:
+            return int(np.max(self.params["horizon"][rows])) + 1
+        if self._reach_all is None:
+            self._reach_all = int(np.max(self.params["horizon"])) + 1
+        return self._reach_all
 
     def _span(self, rows: int, last: int, reach: int) -> np.ndarray:
         """Channels (rows · 4, S) of the first ``rows`` tracks: frame ``last`` led by the history frames before it that a
@@ -71,9 +77,9 @@ class OnlineFIR(PerTrack):
         if self._predicted is None:
             self._grow()
             self._y[:, self._length] = np.nan
-            span = self._span(self._n, self._length, self._reach(slice(None)))
+            span = self._span(self._n, self._length, self._reach())
             self._predicted = self._groups().newest_positions(span).reshape(self._n, M)
-            self._predicted_reach = self._reach(slice(None))
+            self._predicted_reach = self._reach()
         return self._predicted.copy()
 
     def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
@@ -89,11 +95,11 @@ class OnlineFIR(PerTrack):
             return np.empty((0, M))
         self._grow()
         self._y[:, last] = boxes
-        reach = self._reach(slice(None))
+        reach = self._reach()
         self._length += 1
         if births is not None:
             self.start(births)
-        windows, n, reach_next = self._groups(), self._n, self._reach(slice(None))
+        windows, n, reach_next = self._groups(), self._n, self._reach()
         self._y[:, last + 1] = np.nan  # the next frame, without detections
         now, ahead = self._span(n_old, last, reach), self._span(n, last + 1, reach_next)
         old = np.arange(n_old * M)
@@ -153,6 +159,7 @@ class WindowGroups:
         self.length = (self.gparams["horizon"] + f.EXTRA_SAMPLES)[self.group]  # (C,) full window of each channel
         self.group_keys = list(zip(*(v.tolist() for v in self.gparams.values()), strict=True))
         self.gains = gains
+        self.rows: dict[tuple[int, int], np.ndarray] = {}  # {(L, window code): gain row (L,)}, this group numbering
 
     def extended(self, channels: int, key: tuple, length: int) -> WindowGroups | None:
         """These windows and ``channels`` more of gain parameters ``key`` (frame units) and window ``length``, or None
@@ -185,21 +192,27 @@ class WindowGroups:
         compiled = jit.enabled()
         if 2 * L + n_groups.bit_length() <= 62:  # a window kind per (group, length, mask) in 63 bits
             if compiled:
-                first, kind = online_fir_kernels.window_kinds(window, lengths, group, n_groups)
+                codes, first, kind = online_fir_kernels.window_kinds(window, lengths, group, n_groups)
             else:
                 masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])  # right-aligned windows
                 bits = np.int64(1) << np.arange(L, dtype=np.int64)
                 codes = ((masks @ bits) + (lengths.astype(np.int64) << L)) * n_groups + group
-                _, first, kind = np.unique(codes, return_index=True, return_inverse=True)
+                codes, first, kind = np.unique(codes, return_index=True, return_inverse=True)
+            if len(self.rows) >= GAIN_KINDS:
+                self.rows.clear()
+            rows = []
+            for code, i in zip(codes.tolist(), first.tolist(), strict=True):
+                row = self.rows.get((L, code))
+                if row is None:
+                    row = self.rows[(L, code)] = self._gain_row(window[i], int(lengths[i]), int(group[i]))
+                rows.append(row)
+            W = np.array(rows)
         else:
             masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])
             _, first, kind = np.unique(np.column_stack([group, lengths, np.packbits(masks, axis=1)]), axis=0,
                                        return_index=True, return_inverse=True)
+            W = np.array([self._gain_row(window[i], int(lengths[i]), int(group[i])) for i in first.tolist()])
         kind = kind.reshape(-1)
-        W = np.zeros((len(first), L))
-        for u, i in enumerate(first.tolist()):
-            start = L - int(lengths[i])
-            W[u, start:] = self._gain(~np.isnan(window[i, start:]), int(group[i]))
         if compiled:
             out, failed_at = online_fir_kernels.newest_estimates(W, kind, window, lengths, z)
             if failed_at >= 0:
@@ -221,6 +234,14 @@ class WindowGroups:
     def _no_estimate(self, channel: int) -> str:
         return (f"{self.f.name}: no finite estimate for channel {channel} although its window determines the state — "
                 "please report this input")
+
+    def _gain_row(self, window: np.ndarray, length: int, group: int) -> np.ndarray:
+        """The gain row (L,) of a channel's ``window`` (L,) (right-aligned, its last ``length`` samples; zeros before)
+        of gain group ``group``."""
+        row = np.zeros(len(window))
+        start = len(window) - length
+        row[start:] = self._gain(~np.isnan(window[start:]), group)
+        return row
 
     def _gain(self, mask: np.ndarray, group: int) -> np.ndarray:
         """The position gain (L,) of window ``mask`` (L,) of gain group ``group``, NaN where it does not determine the

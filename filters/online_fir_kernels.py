@@ -21,9 +21,10 @@ from bboxtune.filters import jit
 def window_kinds(window: np.ndarray, lengths: np.ndarray, group: np.ndarray,
                  n_groups: int) -> tuple[np.ndarray, np.ndarray]:
     """The window kinds of channels ``window`` (C, L) (right-aligned: channel c's window is its last ``lengths[c]``
-    samples, NaN = missing) of gain groups ``group`` (C,) among ``n_groups``: the first channel of each kind (U,)
-    and each channel's kind (C,), numbered in ascending order of the code ((mask bits + length · 2^L) · n_groups +
-    group). Needs 2L + bit_length(n_groups) <= 62 (the codes fit in 63 bits)."""
+    samples, NaN = missing) of gain groups ``group`` (C,) among ``n_groups``: each kind's code ((mask bits + length ·
+    2^L) · n_groups + group) in ascending order (U,), its first channel (U,) and each channel's kind (C,), as
+    ``np.unique(codes, return_index=True, return_inverse=True)``. Needs 2L + bit_length(n_groups) <= 62 (the codes
+    fit in 63 bits)."""
     return _window_kinds(np.ascontiguousarray(window, dtype=np.float64), np.ascontiguousarray(lengths, dtype=np.int64),
                          np.ascontiguousarray(group, dtype=np.int64), n_groups)
 
@@ -59,7 +60,8 @@ def _window_kinds(window: np.ndarray, lengths: np.ndarray, group: np.ndarray, n_
             first[n_kinds] = c
             n_kinds += 1
         kind[c] = n_kinds - 1
-    return first[:n_kinds].copy(), kind
+    first = first[:n_kinds].copy()
+    return codes[first], first, kind
 
 
 @jit.kernel

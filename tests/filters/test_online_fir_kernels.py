@@ -71,7 +71,8 @@ def test_window_kinds_equal_numpy_unique(seed: int, C: int, L: int, n_groups: in
     group = rng.integers(0, n_groups, C)
     masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])
     codes = ((masks @ (np.int64(1) << np.arange(L, dtype=np.int64))) + (lengths << L)) * n_groups + group
-    _, first, kind = np.unique(codes, return_index=True, return_inverse=True)
-    got_first, got_kind = online_fir_kernels.window_kinds(window, lengths, group, n_groups)
+    unique, first, kind = np.unique(codes, return_index=True, return_inverse=True)
+    got_codes, got_first, got_kind = online_fir_kernels.window_kinds(window, lengths, group, n_groups)
+    np.testing.assert_array_equal(got_codes, unique)
     np.testing.assert_array_equal(got_first, first)
     np.testing.assert_array_equal(got_kind, kind.reshape(-1))
