@@ -19,7 +19,7 @@ from bboxtune.filters import jit
 
 
 def window_kinds(window: np.ndarray, lengths: np.ndarray, group: np.ndarray,
-                 n_groups: int) -> tuple[np.ndarray, np.ndarray]:
+                 n_groups: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The window kinds of channels ``window`` (C, L) (right-aligned: channel c's window is its last ``lengths[c]``
     samples, NaN = missing) of gain groups ``group`` (C,) among ``n_groups``: each kind's code ((mask bits + length ·
     2^L) · n_groups + group) in ascending order (U,), its first channel (U,) and each channel's kind (C,), as
