@@ -18,8 +18,7 @@ import math
 import numpy as np
 
 from bboxtune.filters import jit
-
-WAIT, INIT, PREDICT, UPDATE_Y = range(4)  # kalman_core's frame kinds
+from bboxtune.filters.kalman_core import INIT, UPDATE_Y
 
 
 def sigma_gain_recursion(kinds: np.ndarray, params: np.ndarray, P_start: np.ndarray, F: np.ndarray,
