@@ -89,8 +89,7 @@ class PerTrack:
     def _add_params(self, k: int, params: Mapping[str, Any] | None) -> None:
         """Append the parameters of k new tracks: the template's, with ``params`` (checked) where given."""
         given = self.f.params if not params else type(self.f)(self.f.model, **{**self.f.params, **params}).params
-        self.params = {name: np.concatenate([self.params[name], np.broadcast_to(np.asarray(given[name], dtype=float), (k,))])
-                       for name in self.params}
+        self.params = {name: np.concatenate([self.params[name], np.full(k, given[name], dtype=float)]) for name in self.params}
         self._changed()
 
     def _keep_params(self, index: np.ndarray) -> None:

@@ -13,6 +13,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from bboxtune.filters import jit, online_fir_kernels
 from bboxtune.filters.base import Filter
 from bboxtune.filters.fir_core import FIRFilter
 from bboxtune.filters.online_carry import M, PerTrack, channel_params, check_births, check_rows
@@ -37,19 +38,25 @@ class OnlineFIR(PerTrack):
         self._predicted: np.ndarray | None = None  # (n, 4) the next frame's estimates without detections, if known
         self._predicted_reach = 0  # the reach they were computed with
         self._template: tuple[tuple, int] | None = None  # template_window(f), once
+        self._reach_all: int | None = None  # _reach of every live track (when their parameters change)
 
     def _changed(self) -> None:
         super()._changed()
-        self._windows = self._predicted = None
+        self._windows = self._predicted = self._reach_all = None
 
     def _groups(self) -> WindowGroups:
         if self._windows is None:
             self._windows = WindowGroups(cast(FIRFilter, self.f), self._channel_params(), self._gains)
         return self._windows
 
-    def _reach(self, rows: slice | np.ndarray) -> int:
-        """History frames a continued run of the tracks ``rows`` reads (:func:`bboxtune.filters.history.continue_span`)."""
-        return int(np.max(self.params["horizon"][rows])) + 1
+    def _reach(self, rows: np.ndarray | None = None) -> int:
+        """History frames a continued run of the tracks ``rows`` (default: all live ones) reads
+        (:func:`bboxtune.filters.history.continue_span`)."""
+        if rows is not None:
+            return int(np.max(self.params["horizon"][rows])) + 1
+        if self._reach_all is None:
+            self._reach_all = int(np.max(self.params["horizon"])) + 1
+        return self._reach_all
 
     def _span(self, rows: int, last: int, reach: int) -> np.ndarray:
         """Channels (rows · 4, S) of the first ``rows`` tracks: frame ``last`` led by the history frames before it that a
@@ -70,9 +77,9 @@ class OnlineFIR(PerTrack):
         if self._predicted is None:
             self._grow()
             self._y[:, self._length] = np.nan
-            span = self._span(self._n, self._length, self._reach(slice(None)))
+            span = self._span(self._n, self._length, self._reach())
             self._predicted = self._groups().newest_positions(span).reshape(self._n, M)
-            self._predicted_reach = self._reach(slice(None))
+            self._predicted_reach = self._reach()
         return self._predicted.copy()
 
     def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
@@ -88,11 +95,11 @@ class OnlineFIR(PerTrack):
             return np.empty((0, M))
         self._grow()
         self._y[:, last] = boxes
-        reach = self._reach(slice(None))
+        reach = self._reach()
         self._length += 1
         if births is not None:
             self.start(births)
-        windows, n, reach_next = self._groups(), self._n, self._reach(slice(None))
+        windows, n, reach_next = self._groups(), self._n, self._reach()
         self._y[:, last + 1] = np.nan  # the next frame, without detections
         now, ahead = self._span(n_old, last, reach), self._span(n, last + 1, reach_next)
         old = np.arange(n_old * M)
@@ -133,8 +140,11 @@ class OnlineFIR(PerTrack):
         self._y = self._y[index]
         if len(index) == 0:
             self._length = 0
+        windows = self._windows
         self._keep_params(index)
         self._predicted = None if predicted is None else predicted[index]
+        if windows is not None and len(index):  # the kept tracks' groups (the groups themselves unchanged)
+            self._windows = windows.taken((index[:, None] * M + np.arange(M)).ravel())
 
 
 class WindowGroups:
@@ -149,6 +159,7 @@ class WindowGroups:
         self.length = (self.gparams["horizon"] + f.EXTRA_SAMPLES)[self.group]  # (C,) full window of each channel
         self.group_keys = list(zip(*(v.tolist() for v in self.gparams.values()), strict=True))
         self.gains = gains
+        self.rows: dict[tuple[int, int], np.ndarray] = {}  # {(L, window code): gain row (L,)}, this group numbering
 
     def extended(self, channels: int, key: tuple, length: int) -> WindowGroups | None:
         """These windows and ``channels`` more of gain parameters ``key`` (frame units) and window ``length``, or None
@@ -160,41 +171,77 @@ class WindowGroups:
         out.length = np.concatenate([self.length, np.full(channels, length, dtype=self.length.dtype)])
         return out
 
+    def taken(self, channels: np.ndarray) -> WindowGroups:
+        """These windows for the channels ``channels`` (an int array) only, in that order."""
+        out = copy.copy(self)
+        out.group, out.length = self.group[channels], self.length[channels]
+        return out
 
     def newest_positions(self, z: np.ndarray, channels: np.ndarray | None = None) -> np.ndarray:
         """The position estimate (C,) at the last frame of channels ``z`` (C, S) (frame 0 = each one's first; of the
         channels ``channels`` (C,), default all): what ``f.positions`` gives there — the full window, the start-up
         window (frames 0 … S − 1) or the window with its missing samples dropped, by the same gains; the latest
-        measurement where the window does not determine the state (NaN before any)."""
-        C, S = z.shape
+        measurement where the window does not determine the state (NaN before any). Compiled kernels
+        (:mod:`bboxtune.filters.online_fir_kernels`) where :func:`bboxtune.filters.jit.enabled`, else numpy."""
+        S = z.shape[1]
         group = self.group if channels is None else self.group[channels]
         lengths = np.minimum(self.length if channels is None else self.length[channels], S)  # shorter: start-up
         L = int(lengths.max())
         window = z[:, S - L:]
-        masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])  # right-aligned windows, their samples
         n_groups = len(self.group_keys)
+        compiled = jit.enabled()
         if 2 * L + n_groups.bit_length() <= 62:  # a window kind per (group, length, mask) in 63 bits
-            bits = np.int64(1) << np.arange(L, dtype=np.int64)
-            codes = ((masks @ bits) + (lengths.astype(np.int64) << L)) * n_groups + group
+            if compiled:
+                codes, first, kind = online_fir_kernels.window_kinds(window, lengths, group, n_groups)
+            else:
+                masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])  # right-aligned windows
+                bits = np.int64(1) << np.arange(L, dtype=np.int64)
+                codes = ((masks @ bits) + (lengths.astype(np.int64) << L)) * n_groups + group
+                codes, first, kind = np.unique(codes, return_index=True, return_inverse=True)
+            if len(self.rows) >= GAIN_KINDS:
+                self.rows.clear()
+            rows = []
+            for code, i in zip(codes.tolist(), first.tolist(), strict=True):
+                row = self.rows.get((L, code))
+                if row is None:
+                    row = self.rows[(L, code)] = self._gain_row(window[i], int(lengths[i]), int(group[i]))
+                rows.append(row)
+            W = np.array(rows)
         else:
-            codes = np.unique(np.column_stack([group, lengths, np.packbits(masks, axis=1)]), axis=0,
-                              return_inverse=True)[1].reshape(-1)
-        unique, first, kind = np.unique(codes, return_index=True, return_inverse=True)
-        W = np.zeros((len(unique), L))
-        for u, i in enumerate(first.tolist()):
-            W[u, L - lengths[i]:] = self._gain(masks[i, L - lengths[i]:], int(group[i]))
-        W = W[kind.reshape(-1)]
+            masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])
+            _, first, kind = np.unique(np.column_stack([group, lengths, np.packbits(masks, axis=1)]), axis=0,
+                                       return_index=True, return_inverse=True)
+            W = np.array([self._gain_row(window[i], int(lengths[i]), int(group[i])) for i in first.tolist()])
+        kind = kind.reshape(-1)
+        if compiled:
+            out, failed_at = online_fir_kernels.newest_estimates(W, kind, window, lengths, z)
+            if failed_at >= 0:
+                raise FloatingPointError(self._no_estimate(failed_at))
+            return out
+        W = W[kind]
+        masks = ~np.isnan(window) & (np.arange(L) >= L - lengths[:, None])
         out = np.einsum("pl,pl->p", W, np.where(masks, window, 0.0))
         failed = ~np.isnan(W[:, -1]) & np.isnan(out)
         if failed.any():
-            raise FloatingPointError(f"{self.f.name}: no finite estimate for channel {np.argmax(failed)} although its "
-                                     "window determines the state — please report this input")
+            raise FloatingPointError(self._no_estimate(int(np.argmax(failed))))
         held = np.isnan(out)  # undetermined windows: the latest measurement of the span (NaN before any)
         if held.any():
             valid = ~np.isnan(z[held])
             last = S - 1 - np.argmax(valid[:, ::-1], axis=1)
             out[held] = np.where(valid.any(axis=1), z[held, last], np.nan)
         return out
+
+    def _no_estimate(self, channel: int) -> str:
+        return (f"{self.f.name}: no finite estimate for channel {channel} although its window determines the state — "
+                "please report this input")
+
+    def _gain_row(self, window: np.ndarray, length: int, group: int) -> np.ndarray:
+        """The gain row (L,) of a channel's ``window`` (L,) (right-aligned, its last ``length`` samples; zeros before)
+        of gain group ``group``."""
+        row = np.zeros(len(window))
+        start = len(window) - length
+        row[start:] = self._gain(~np.isnan(window[start:]), group)
+        return row
 
     def _gain(self, mask: np.ndarray, group: int) -> np.ndarray:
         """The position gain (L,) of window ``mask`` (L,) of gain group ``group``, NaN where it does not determine the

@@ -23,7 +23,8 @@ eps·|W_i|·‖√P‖ to the means — 2e4 px of error on a 200 px track with �
 The covariance recursion does not depend on the data, so — as for :class:`bboxtune.filters.kf.KF`
 (:mod:`bboxtune.filters.kalman_core`) — it runs once per unique (parameters, prior, frame kinds) row until its steady state
 (the posterior covariance repeats bit for bit), and every frame is the affine map x_n = (I − K_n H) F x_{n−1} +
-K_n y_n applied to all channels at once (:func:`sigma_gain_recursion`; T = 1e6 frames in ~2 s instead of ~230 s);
+K_n y_n applied to all channels at once (:func:`sigma_gain_recursion`, a compiled kernel in
+:mod:`bboxtune.filters.ukf_kernels`; T = 1e6 frames in ~2 s instead of ~230 s);
 the camera-motion channels (3 states, 2 measurements) run the same linear UKF frame by frame
 (:func:`unscented_filter`). This UKF equals :class:`bboxtune.filters.kf.KF` to rounding for every α, β, κ in range (tests:
 1e-12 relative) and over the whole parameter range of :mod:`bboxtune.filters.validation` (position error against a
@@ -70,6 +71,7 @@ from typing import Any, ClassVar, cast
 
 import numpy as np
 
+from bboxtune.filters import jit, ukf_kernels
 from bboxtune.filters.base import AxisCarry, Filter
 from bboxtune.filters.kalman_core import (
     INIT,
@@ -129,8 +131,8 @@ class UKF(Filter):
         camera = np.arange(C) % M < self.camera_coordinates
         out, x_end, P_end = np.empty((C, T, 2)), np.empty((C, 2)), np.empty((C, 2, 2))
         c_end = P_c_end = None
-        plain = ~camera
-        if plain.any():  # the two-state model: gains once per row, then affine maps (kalman_core)
+        plain: np.ndarray | slice = ~camera if camera.any() else slice(None)  # all channels: views, not copies
+        if C and self.camera_coordinates < M:  # the two-state model: gains once per row, then affine maps (kalman_core)
             rows = np.stack([params[k][plain] for k in ("sigma_w", "sigma_v", "alpha", "beta", "kappa")], axis=1)
             out[plain], P_end[plain] = filter_channels(
                 np.where(finite, z, 0.0)[plain], kinds[plain], rows, x_start[plain], P_start[plain],
@@ -244,12 +246,13 @@ def sigma_gain_recursion(kinds: np.ndarray, params: np.ndarray, P_start: np.ndar
     ``kinds`` (G, T), parameters [σ_w, σ_v, α, β, κ] (G, 5) and start covariance (2, 2, G), the frame from which
     they stay constant, and the last posterior covariance — the contract of
     :func:`bboxtune.filters.kalman_core.gain_recursion`, with the covariances of :func:`sigma_predict` and
-    :func:`sigma_update`."""
+    :func:`sigma_update`. Runs the compiled kernel (:mod:`bboxtune.filters.ukf_kernels`) where
+    :func:`bboxtune.filters.jit.enabled`, else (and where a covariance is not positive definite) this numpy reference."""
+    if jit.enabled():
+        compiled = ukf_kernels.sigma_gain_recursion(kinds, params, P_start, axis.F, axis.B[:, 0])
+        if compiled is not None:  # else a covariance without a Cholesky root: the reference's eigen-root
+            return compiled
     G, T = kinds.shape
-    if G == 1:
-        one = _sigma_recursion_one_row(kinds[0], params[0], P_start[:, :, 0], axis)
-        if one is not None:
-            return one
     sigma_w, sigma_v, alpha, beta, kappa = params.T
     F, H, b = axis.F, axis.H, axis.B[:, 0]
     Q = np.outer(b, b)[:, :, None] * sigma_w**2
@@ -276,74 +279,6 @@ def sigma_gain_recursion(kinds: np.ndarray, params: np.ndarray, P_start: np.ndar
             return coef, n, P_new
         P = P_new
     return coef, T, P
-
-
-def _sigma_recursion_one_row(kinds: np.ndarray, params: np.ndarray, P_start: np.ndarray,
-                             axis: StateSpaceModel) -> tuple[np.ndarray, int, np.ndarray] | None:
-    """:func:`sigma_gain_recursion` for a single row in Python floats (~30× faster than numpy calls on length-1
-    arrays: a long track with gaps runs the recursion on every frame). The same equations (Cholesky root of
-    (n + λ) P, five centred sigma points, weighted sums in order s = 0 … 4); agrees with the batched form to
-    rounding (tested). None if a covariance is not positive definite (the batched form then takes over)."""
-    sigma_w, sigma_v, alpha, beta, kappa = params.tolist()
-    spread, Wc = (w.ravel().tolist() for w in scaled_weights(2, *(np.array([v]) for v in (alpha, beta, kappa))))
-    s, (wc0, wi) = spread[0], Wc[:2]
-    (f00, f01), (f10, f11) = axis.F.tolist()
-    b0, b1 = axis.B[:, 0].tolist()
-    q00, q01, q11, r = sigma_w**2 * b0 * b0, sigma_w**2 * b0 * b1, sigma_w**2 * b1 * b1, sigma_v**2
-    s00, s01, s11 = P_start[0, 0].item(), P_start[0, 1].item(), P_start[1, 1].item()
-    p00, p01, p11 = s00, s01, s11
-    T = kinds.size
-    coef = np.empty((T, 6, 1))
-    out = coef[:, :, 0]
-    settled_from = 0 if np.all(kinds == kinds[-1]) else T - int(np.argmax(kinds[::-1] != kinds[-1]))
-
-    def covariance(a0: float, a1: float, c0: float, c1: float) -> tuple[float, float, float]:
-        """Σ W^c χ χᵀ of the centred points χ = [0, ±(a0, a1), ±(c0, c1)] (eqs. 4, 8, 10)."""
-        d = ((0.0, 0.0), (a0, a1), (c0, c1), (-a0, -a1), (-c0, -c1))
-        w = (wc0, wi, wi, wi, wi)
-        return (sum(wk * x * x for wk, (x, _) in zip(w, d, strict=False)),
-                sum(wk * x * y for wk, (x, y) in zip(w, d, strict=False)),
-                sum(wk * y * y for wk, (_, y) in zip(w, d, strict=False)))
-
-    def root(a00: float, a01: float, a11: float) -> tuple[float, float, float] | None:
-        """Cholesky root of (n + λ) [[a00, a01], [a01, a11]]: columns (l00, l10), (0, l11); None if not definite."""
-        if not s * a00 > 0.0:
-            return None
-        l00 = (s * a00) ** 0.5
-        l10 = s * a01 / l00
-        d = s * a11 - l10 * l10
-        return (l00, l10, d**0.5) if d > 0.0 else None
-
-    for n, k in enumerate(kinds.tolist()):
-        if (L := root(p00, p01, p11)) is None:
-            return None
-        l00, l10, l11 = L
-        e00, e01, e11 = covariance(f00 * l00 + f01 * l10, f10 * l00 + f11 * l10, f01 * l11, f11 * l11)
-        m00, m01, m11 = e00 + q00, e01 + q01, e11 + q11  # P⁻ (eqs. 6–8)
-        if k == UPDATE_Y:
-            if (U := root(m00, m01, m11)) is None:
-                return None
-            u00, u10, u11 = U  # sigma points re-drawn from P⁻; z = their first component
-            zz, zx, _ = covariance(u00, u10, 0.0, u11)  # Σ W^c dz², Σ W^c dz χ_1 (eqs. 9–10)
-            S = zz + r
-            k0, k1 = zz / S, zx / S
-            n00 = m00 - k0 * S * k0
-            n01 = 0.5 * ((m01 - k0 * S * k1) + (m01 - k1 * S * k0))
-            n11 = m11 - k1 * S * k1
-        else:
-            k0 = k1 = 0.0
-            n00, n01, n11 = m00, m01, m11
-        row = out[n]
-        if k <= INIT:
-            n00, n01, n11 = s00, s01, s11
-            row[:] = (0.0, 0.0, 0.0, 0.0, 1.0 if k == INIT else 0.0, 0.0)
-        else:
-            row[:] = (f00 - k0 * f00, f01 - k0 * f01, f10 - k1 * f00, f11 - k1 * f01, k0, k1)
-        if n % 8 == 7 and n >= settled_from and (n00, n01, n11) == (p00, p01, p11):
-            coef[n + 1:] = coef[n]
-            return coef, n, np.array([[n00, n01], [n01, n11]])[:, :, None]
-        p00, p01, p11 = n00, n01, n11
-    return coef, T, np.array([[p00, p01], [p01, p11]])[:, :, None]
 
 
 def unscented_filter(y: np.ndarray, kinds: np.ndarray, F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray,

@@ -183,26 +183,6 @@ def test_bad_camera_input() -> None:
         camera.run(y, u=np.full((10, 2), np.inf))
 
 
-def test_one_row_recursion_equals_batched() -> None:
-    """The Python-float recursion of a single row (sigma_gain_recursion, G = 1) equals the numpy one to rounding
-    (measured 2e-12 relative in the first frames, where the diffuse velocity prior cancels)."""
-    from bboxtune.filters import kalman_core as kc
-    from bboxtune.filters.ukf import sigma_gain_recursion
-
-    axis = filters.constant_velocity(TAU).axis()
-    finite = np.random.default_rng(4).random((2, 300)) > 0.1
-    finite[:, :3] = False
-    kinds = kc.frame_kinds(finite, prior=False)
-    params = np.array([[50.0, 4.0, 1e-3, 2.0, 0.0], [5.0, 2.0, 0.7, 0.0, 1.0]])
-    P_start = np.stack([np.diag([16.0, 1e8]), np.diag([4.0, 3e7])], axis=2)
-    coef_b, steady_b, P_b = sigma_gain_recursion(kinds, params, P_start, axis)
-    for g in range(2):
-        coef_1, steady_1, P_1 = sigma_gain_recursion(kinds[g:g + 1], params[g:g + 1], P_start[:, :, g:g + 1], axis)
-        stop = min(steady_1, steady_b)
-        np.testing.assert_allclose(coef_1[:stop + 1, :, 0], coef_b[:stop + 1, :, g], rtol=1e-10, atol=1e-14)
-        np.testing.assert_allclose(P_1[:, :, 0], P_b[:, :, g], rtol=1e-10)
-
-
 def test_gains_stop_at_steady_state_on_long_tracks() -> None:
     """Without gaps the sigma-point gain recursion stops once the covariance repeats (a few hundred frames), so a
     track of 200,000 frames costs affine maps only — and equals the KF there."""
