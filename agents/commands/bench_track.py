@@ -4,8 +4,9 @@ filter (sort_kf) measured in the same run as the peer.
     python scripts/bench_track.py [--mot-root ../shared/data/mot15] [--repeat 3] [--filters sort_kf bytetrack_kf search]
 
 Every filter tracks every sequence of the data folder (SORT's settings); the best of --repeat runs is kept. Prints
-frames/s and detections/s per filter and the ratio to sort_kf's rate. Speed is never asserted by the tests; run
-on an idle machine for meaningful numbers.
+frames/s and detections/s per filter and the ratio to sort_kf's rate. The filters' timed runs alternate (every
+filter once, then again, --repeat times), so that a change of the machine's load hits all of them. Speed is never
+asserted by the tests; run on an idle machine for meaningful numbers.
 """
 
 from __future__ import annotations
@@ -42,19 +43,19 @@ def main(argv: list[str] | None = None) -> int:
     names = ["sort_kf", *(f for f in args.filters if f != "sort_kf")]  # the peer first
     frames = sum(info.frames for _, info in data)
     detections = sum(len(det.frame) for det, _ in data)
-    rates: dict[str, float] = {}
-    for name in names:
-        best = float("inf")
-        for _ in range(args.repeat):
+    best = dict.fromkeys(names, float("inf"))
+    for _ in range(args.repeat):  # the filters alternate, so that a change of load hits every one of them
+        for name in names:
             start = time.perf_counter()
             for det, info in data:
                 tracker = make_tracker(name, 1.0 / info.fps, params=PARAMS.get(name),
                                        tuner=tuner if name == TUNED else None)
                 for _ in tracker.run(det.frame, det.box, det.score, info.frames):
                     pass
-            best = min(best, time.perf_counter() - start)
-        rates[name] = frames / best
-        print(f"{name:13s} {rates[name]:8.0f} frames/s {detections / best:9.0f} detections/s "
+            best[name] = min(best[name], time.perf_counter() - start)
+    rates = {name: frames / seconds for name, seconds in best.items()}
+    for name in names:
+        print(f"{name:13s} {rates[name]:8.0f} frames/s {detections / best[name]:9.0f} detections/s "
               f"{rates[name] / rates['sort_kf']:6.2f}x sort_kf")
     print(f"({len(data)} sequences, {frames} frames, {detections} detections; best of {args.repeat})")
     return 0
