@@ -103,6 +103,33 @@ def _joseph_step(a00: float, a01: float, a10: float, a11: float, q00: float, q01
 
 
 @jit.kernel
+def settled_from(kinds: np.ndarray, g: int) -> int:
+    """The first frame from which row ``g``'s frame kinds (G, T) stay constant to the end."""
+    T = kinds.shape[1]
+    last = T - 1
+    while last > 0 and kinds[g, last - 1] == kinds[g, T - 1]:
+        last -= 1
+    return last
+
+
+@jit.kernel
+def repeat_later(coef: np.ndarray, g: int, n: int) -> None:
+    """Row ``g``'s coefficients (G, T, 6) of every frame after ``n`` set to frame ``n``'s (its covariance repeats)."""
+    for later in range(n + 1, coef.shape[1]):
+        for j in range(6):  # element loops, not slices: a third of the compile time
+            coef[g, later, j] = coef[g, n, j]
+
+
+@jit.kernel
+def stop_frame(settled: int, repeat_from: int, T: int) -> int:
+    """The frame from which every row's coefficients repeat (T: none repeat), rounded up as the reference checks
+    frames n % 8 == 7."""
+    stop = max(settled, repeat_from)
+    stop += (7 - stop % 8) % 8
+    return min(stop, T) if repeat_from < T else T
+
+
+@jit.kernel
 def _gain_rows(kinds: np.ndarray, A: np.ndarray, Q: np.ndarray, Lam: np.ndarray, D: np.ndarray, R: np.ndarray,
                M: np.ndarray, P_start: np.ndarray) -> tuple:
     """The rows' recursions one after the other (see the module docstring); ``kinds`` (G, T) int."""
@@ -115,12 +142,10 @@ def _gain_rows(kinds: np.ndarray, A: np.ndarray, Q: np.ndarray, Lam: np.ndarray,
                 correlated[k] = True
     coef = np.empty((G, T, 6))  # row first: each row's frames contiguous
     P_end = np.empty((2, 2, G))
-    settled_from, repeat_from = 0, 0  # the last kind change, the last frame a row's covariance starts repeating
+    settled, repeat_from = 0, 0  # the last kind change, the last frame a row's covariance starts repeating
     for g in range(G):
-        last = T - 1
-        while last > 0 and kinds[g, last - 1] == kinds[g, T - 1]:
-            last -= 1
-        settled_from = max(settled_from, last)  # kinds of row g constant from frame `last` on
+        last = settled_from(kinds, g)
+        settled = max(settled, last)
         s00, s01, s10, s11 = P_start[0, 0, g], P_start[0, 1, g], P_start[1, 0, g], P_start[1, 1, g]
         p00, p01, p10, p11 = s00, s01, s10, s11
         repeats = T
@@ -141,15 +166,11 @@ def _gain_rows(kinds: np.ndarray, A: np.ndarray, Q: np.ndarray, Lam: np.ndarray,
             p00, p01, p10, p11 = n00, n01, n10, n11
             if n >= last and steady:  # P_n = P_{n−1} and no kind change later: every later frame repeats frame n
                 repeats = n
-                for later in range(n + 1, T):
-                    for j in range(6):  # element loops, not slices: a third of the compile time
-                        coef[g, later, j] = coef[g, n, j]
+                repeat_later(coef, g, n)
                 break
         repeat_from = max(repeat_from, repeats)
         P_end[0, 0, g], P_end[0, 1, g], P_end[1, 0, g], P_end[1, 1, g] = p00, p01, p10, p11
-    stop = max(settled_from, repeat_from)
-    stop += (7 - stop % 8) % 8  # the reference checks frames n % 8 == 7
-    return coef, min(stop, T) if repeat_from < T else T, P_end
+    return coef, stop_frame(settled, repeat_from, T), P_end
 
 
 @jit.kernel

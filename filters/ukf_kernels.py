@@ -19,6 +19,7 @@ import numpy as np
 
 from bboxtune.filters import jit
 from bboxtune.filters.kalman_core import INIT, UPDATE_Y
+from bboxtune.filters.kalman_kernels import repeat_later, settled_from, stop_frame
 
 
 def sigma_gain_recursion(kinds: np.ndarray, params: np.ndarray, P_start: np.ndarray, F: np.ndarray,
@@ -71,7 +72,7 @@ def _sigma_rows(kinds: np.ndarray, params: np.ndarray, P_start: np.ndarray, F: n
     b0, b1 = b[0], b[1]
     coef = np.empty((G, T, 6))  # row first: each row's frames contiguous
     P_end = np.empty((2, 2, G))
-    settled_from, repeat_from = 0, 0  # the last kind change, the last frame a row's covariance starts repeating
+    settled, repeat_from = 0, 0  # the last kind change, the last frame a row's covariance starts repeating
     for g in range(G):
         sigma_w, sigma_v, alpha, beta, kappa = params[g, 0], params[g, 1], params[g, 2], params[g, 3], params[g, 4]
         spread = alpha * alpha * (2.0 + kappa)  # n + λ = α²(n + κ), n = 2 (ukf.scaled_weights)
@@ -79,10 +80,8 @@ def _sigma_rows(kinds: np.ndarray, params: np.ndarray, P_start: np.ndarray, F: n
         w0 = (spread - 2.0) / spread + 1.0 - alpha * alpha + beta
         q00, q01, q11 = b0 * b0 * (sigma_w * sigma_w), b0 * b1 * (sigma_w * sigma_w), b1 * b1 * (sigma_w * sigma_w)
         r = sigma_v * sigma_v
-        last = T - 1
-        while last > 0 and kinds[g, last - 1] == kinds[g, T - 1]:
-            last -= 1
-        settled_from = max(settled_from, last)  # kinds of row g constant from frame `last` on
+        last = settled_from(kinds, g)
+        settled = max(settled, last)
         s00, s01, s10, s11 = P_start[0, 0, g], P_start[0, 1, g], P_start[1, 0, g], P_start[1, 1, g]
         p00, p01, p10, p11 = s00, s01, s10, s11
         repeats = T
@@ -117,12 +116,8 @@ def _sigma_rows(kinds: np.ndarray, params: np.ndarray, P_start: np.ndarray, F: n
             p00, p01, p10, p11 = n00, n01, n10, n11
             if n >= last and steady:  # P_n = P_{n−1} and no kind change later: every later frame repeats frame n
                 repeats = n
-                for later in range(n + 1, T):
-                    for j in range(6):
-                        coef[g, later, j] = coef[g, n, j]
+                repeat_later(coef, g, n)
                 break
         repeat_from = max(repeat_from, repeats)
         P_end[0, 0, g], P_end[0, 1, g], P_end[1, 0, g], P_end[1, 1, g] = p00, p01, p10, p11
-    stop = max(settled_from, repeat_from)
-    stop += (7 - stop % 8) % 8  # the reference checks frames n % 8 == 7
-    return coef, min(stop, T) if repeat_from < T else T, P_end, True
+    return coef, stop_frame(settled, repeat_from, T), P_end, True
