@@ -12,10 +12,10 @@ trackers ship, ByteTrack's and SORT's (:data:`PEER_NAMES`).
 from __future__ import annotations
 
 from bboxtune.filters.base import Filter
-from bboxtune.filters.batch import candidate_positions, track_positions
+from bboxtune.filters.batch import candidate_positions, one_track_positions, track_positions
 from bboxtune.filters.horizon import n_opt, rule_horizon
 from bboxtune.filters.model import StateSpaceModel, constant_velocity
 from bboxtune.filters.registry import NAMES, PEER_NAMES, filter_class, make
 
 __all__ = ["NAMES", "PEER_NAMES", "Filter", "StateSpaceModel", "candidate_positions", "constant_velocity",
-           "filter_class", "make", "n_opt", "rule_horizon", "track_positions"]
+           "filter_class", "make", "n_opt", "one_track_positions", "rule_horizon", "track_positions"]

@@ -19,7 +19,7 @@ give empty results. Every estimate from a channel's first finite measurement on 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields, replace
 from typing import Any, ClassVar, cast
 
@@ -139,12 +139,15 @@ class Filter(ABC):
 
     def __init__(self, model: StateSpaceModel, **params: Any) -> None:
         self.model = check_model(model)
-        unknown = sorted(set(params) - set(self.DEFAULTS))
-        if unknown:
-            raise ValueError(
-                f"{self.name}: unknown parameter(s) {unknown}; allowed: {sorted(self.DEFAULTS)}"
-            )
+        self.check_names(params)
         self.params = self._validate({**self.DEFAULTS, **params})
+
+    @classmethod
+    def check_names(cls, params: Mapping[str, Any]) -> None:
+        """ValueError naming the parameters in ``params`` that this back end does not take."""
+        unknown = sorted(set(params) - set(cls.DEFAULTS))
+        if unknown:
+            raise ValueError(f"{cls.name}: unknown parameter(s) {unknown}; allowed: {sorted(cls.DEFAULTS)}")
 
     @property
     def camera_coordinates(self) -> int:

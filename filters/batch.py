@@ -14,6 +14,7 @@ test_batch.py). Models are the constant-velocity models of :func:`bboxtune.filte
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 
@@ -60,3 +61,21 @@ def track_positions(name: str, ys: Sequence[np.ndarray], taus: Sequence[float],
         for i, r in enumerate(rows):
             out[r] = est[i]
     return out
+
+
+def one_track_positions(name: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray]) -> np.ndarray:
+    """:func:`track_positions` of the one track ``y`` (T, M) with one parameter set ``params`` (arrays (1,)), bit for
+    bit, with the configured filter cached per (back end, τ, parameter values): a tuner filters every track it sees
+    with its rule, often the same parameters (bytetrack_kf's stock ones), and building the filter costs more than
+    filtering one short track. Returns the position estimates (T, M)."""
+    values = tuple((k, v.dtype.str, v.tobytes()) for k, v in params.items())
+    return _one_track_filter(name, float(tau), y.shape[-1], values).positions(y[None])[0]
+
+
+@lru_cache(maxsize=64)
+def _one_track_filter(name: str, tau: float, n_coordinates: int, values: tuple[tuple[str, str, bytes], ...]) -> Filter:
+    """The filter :func:`track_positions` builds for one track (the parameters as (name, dtype, bytes) of (1,) arrays)."""
+    cls = filter_class(name)
+    params = {k: np.frombuffer(raw, dtype=dtype).copy() for k, dtype, raw in values}
+    taus_run, used = _run_intervals(cls, np.asarray([tau], dtype=float), params)
+    return cls(constant_velocity(taus_run.tolist()[0], ndim=n_coordinates), **{k: v[[0]] for k, v in used.items()})

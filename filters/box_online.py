@@ -18,7 +18,7 @@ The steps are the batch recursion's own (:meth:`BoxKF.predict_state`, :func:`bbo
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import numpy as np
@@ -123,9 +123,12 @@ class OnlineBoxKF:
             self._noise = _columns(self._noise, index)
 
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
-        """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on."""
+        """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on.
+        A box filter checks each parameter on its own (:meth:`BoxKF._validate`), so only those given are checked,
+        without building a filter as :func:`track_params` does (a re-tuning tracker calls this every frame)."""
         check_no_gap_policy(params)
-        self.params = track_params(self.kf, self.params, rows, params)
+        self.kf.check_names(params)
+        self.params = replaced(self.params, rows, self.kf._validate(dict(params)))
         self._noise = None
 
 
@@ -148,9 +151,15 @@ def track_params(f: Filter, current: Mapping[str, np.ndarray], rows: np.ndarray,
                  ) -> dict[str, np.ndarray]:
     """Per-track parameters ``current`` (``{name: (n,)}``) with those of the tracks ``rows`` replaced by ``params``
     (``{name: scalar or (len(rows),)}``), checked by ``f``'s class as ``filters.make`` checks them."""
-    given = type(f)(f.model, **{**f.params, **params}).params
+    return replaced(current, rows, type(f)(f.model, **{**f.params, **params}).params, params)
+
+
+def replaced(current: Mapping[str, np.ndarray], rows: np.ndarray, given: Mapping[str, np.ndarray],
+             names: Iterable[str] | None = None) -> dict[str, np.ndarray]:
+    """Per-track parameters ``current`` (``{name: (n,)}``) with those ``names`` (default: all of ``given``) of the
+    tracks ``rows`` set to the checked values ``given`` (``{name: scalar or (len(rows),)}``)."""
     updated = dict(current)
-    for name in params:
+    for name in given if names is None else names:
         updated[name] = current[name].copy()
         updated[name][rows] = given[name]
     return updated

@@ -24,7 +24,7 @@ directory, load it once with :meth:`Tuner.from_run` and call its methods.
 
 The observation is computed by the env's own code for an episode of the tuner's config
 (:meth:`Tuner.observe`): the source's fixed rule (:func:`rule_nominal`: its nominal σ and N_opt), that rule's
-filter run (:func:`bboxtune.envs.episodes.scoring.run_tracks`), then
+filter run (:func:`bboxtune.envs.episodes.scoring.run_track`), then
 :func:`bboxtune.envs.episodes.features.measurement_features` — so it equals
 the env's reset observation on the same measurements (tested), and the parameters equal what ``env.step``
 applies for the policy's action. Smoothed boxes are the back end's position estimates; frames before the
@@ -68,7 +68,7 @@ from bboxtune.envs.episodes.config import EnvConfig, check_real
 from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.episode import rule_nominal as source_nominal  # the sources' own rule for given σ
 from bboxtune.envs.episodes.features import box_scale, measurement_features
-from bboxtune.envs.episodes.scoring import box_model, run_positions, run_tracks
+from bboxtune.envs.episodes.scoring import box_model, run_positions, run_track
 from bboxtune.envs.episodes.sources import SimSource
 from bboxtune.envs.episodes.video_source import VideoSettings
 from bboxtune.envs.track_env import TrackEnv
@@ -241,7 +241,7 @@ class Tuner:
         y = xywh_to_cxcywh(xywh)
         nominal = rule_nominal(self.config, y, tau)
         track = Episode(truth=np.full_like(y, np.nan), y=y, tau=tau, nominal=nominal)  # no ground truth: none is used
-        rule = run_tracks(self.backend, [y], [tau], TrackEnv.rule_params(track))[0]
+        rule = run_track(self.backend, y, tau, TrackEnv.rule_params(track))
         obs = measurement_features(y, tau, nominal.sigma_v, nominal.sigma_w, rule)
         return Observation(obs=obs, nominal=nominal, y=y, tau=tau)
 

@@ -13,13 +13,17 @@ shipped tuners and random observations):
   (``functional.linear``, ``torch.tanh``, ``functional.relu``) and a flat Box observation as ``obs.float()``
   (``preprocess_obs``) — other layers and extractors as modules; every other policy (SAC, TD3,
   state-dependent noise) runs its own ``_predict``;
+* which of these paths a policy takes, its layers in order and the parameter whose device is the policy's are
+  worked out once per policy (again when its action networks are replaced by other modules), not on every call;
 * then, as ``predict``: actions as numpy (n, *action shape), unscaled from [-1, 1] for a squashing policy, else
   clipped to the action space.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import cast
+from weakref import WeakKeyDictionary
 
 import numpy as np
 import torch as th
@@ -36,14 +40,15 @@ def deterministic_actions(policy: BasePolicy, obs: np.ndarray) -> np.ndarray:
     docstring): the actions (n, *action shape)."""
     if policy.training:
         policy.set_training_mode(False)
+    plan = _plan(policy)
     with th.no_grad():
-        x = th.as_tensor(obs, device=policy.device)
-        if isinstance(policy, ActorCriticPolicy) and type(policy.action_dist) is DiagGaussianDistribution:
-            if type(policy.pi_features_extractor) is FlattenExtractor and isinstance(policy.observation_space, spaces.Box):
-                features = x.float().flatten(1)  # preprocess_obs of a Box, then FlattenExtractor's nn.Flatten
-            else:
-                features = BaseModel.extract_features(policy, x, policy.pi_features_extractor)
-            actions = _forward(policy.action_net, _forward(policy.mlp_extractor.policy_net, features))
+        x = th.as_tensor(obs, device=plan.device())
+        if plan.layers is not None:
+            features = x.float().flatten(1) if plan.flat else BaseModel.extract_features(
+                policy, x, cast(ActorCriticPolicy, policy).pi_features_extractor)
+            actions = features
+            for layer in plan.layers:
+                actions = _apply(layer, actions)
         else:
             actions = policy._predict(x, deterministic=True)
     out = actions.cpu().numpy().reshape((-1, *policy.action_space.shape))  # type: ignore[misc]
@@ -54,14 +59,54 @@ def deterministic_actions(policy: BasePolicy, obs: np.ndarray) -> np.ndarray:
     return out
 
 
-def _forward(layer: nn.Module, x: th.Tensor) -> th.Tensor:
-    """``layer(x)``; a ``Sequential`` of ``Linear`` / ``Tanh`` / ``ReLU`` (SB3's MLPs) by the functions their
-    ``forward`` calls, without ``Module.__call__``'s hook dispatch (tens of µs a layer on a busy machine)."""
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """How :func:`deterministic_actions` runs one policy, worked out once per policy and network (module docstring)."""
+
+    networks: tuple[nn.Module, ...]  # the policy's action networks the plan was made from (a swapped one: a new plan)
+    first: nn.Parameter | None  # the policy's first parameter: its device is the policy's (SB3's ``policy.device``)
+    layers: tuple[nn.Module, ...] | None  # the Gaussian mean's layers in order, flattened; None: the policy's _predict
+    flat: bool  # a flat Box observation through FlattenExtractor: ``obs.float().flatten(1)``
+
+    def device(self) -> th.device:
+        return self.first.device if self.first is not None else th.device("cpu")
+
+
+_PLANS: WeakKeyDictionary[BasePolicy, _Plan] = WeakKeyDictionary()
+
+
+def _networks(policy: BasePolicy) -> tuple[nn.Module, ...]:
+    if isinstance(policy, ActorCriticPolicy) and type(policy.action_dist) is DiagGaussianDistribution:
+        return policy.mlp_extractor.policy_net, policy.action_net
+    return ()
+
+
+def _plan(policy: BasePolicy) -> _Plan:
+    """The policy's plan (cached while its action networks are the same modules)."""
+    networks = _networks(policy)
+    plan = _PLANS.get(policy)
+    if plan is not None and len(plan.networks) == len(networks) and all(
+            a is b for a, b in zip(plan.networks, networks, strict=True)):
+        return plan
+    flat = (isinstance(policy, ActorCriticPolicy) and type(policy.pi_features_extractor) is FlattenExtractor
+            and isinstance(policy.observation_space, spaces.Box))
+    layers = tuple(layer for network in networks for layer in _flattened(network)) if networks else None
+    plan = _Plan(networks=networks, first=next(iter(policy.parameters()), None), layers=layers, flat=flat)
+    _PLANS[policy] = plan
+    return plan
+
+
+def _flattened(layer: nn.Module) -> list[nn.Module]:
+    """The layers a ``Sequential`` (exact type; nested ones too) runs in order; another module as itself."""
+    if type(layer) is nn.Sequential:
+        return [inner for child in layer for inner in _flattened(child)]
+    return [layer]
+
+
+def _apply(layer: nn.Module, x: th.Tensor) -> th.Tensor:
+    """``layer(x)``; ``Linear`` / ``Tanh`` / ``ReLU`` (SB3's MLPs) by the functions their ``forward`` calls, without
+    ``Module.__call__``'s hook dispatch (tens of µs a layer on a busy machine)."""
     kind = type(layer)  # exact types: a subclass may override forward
-    if kind is nn.Sequential:
-        for inner in cast(nn.Sequential, layer):
-            x = _forward(inner, x)
-        return x
     if kind is nn.Linear:
         linear = cast(nn.Linear, layer)
         return functional.linear(x, linear.weight, linear.bias)

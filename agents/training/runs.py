@@ -42,6 +42,7 @@ from bboxtune.agents.training.algos import ALGOS, RECURRENT
 from bboxtune.agents.training.batched import TuneVecEnv
 from bboxtune.agents.training.deterministic import deterministic_actions
 from bboxtune.agents.training.hyperparams import load_hyperparams
+from bboxtune.agents.training.obs_normalization import ObsNormalization
 from bboxtune.agents.training.run_files import RunError, load_normalizer
 from bboxtune.agents.training.safe_load import load_model
 from bboxtune.envs import RETUNE_ID
@@ -263,12 +264,17 @@ class SB3Policy(ObsPolicy):
         self.name = name
         self.recurrent = recurrent
         self._state: Any = None  # the LSTM state after the episode's last act (recurrent only)
+        self._normalization: ObsNormalization | None = None  # the normalizer's arrays, built when first needed
 
     def _normalized(self, obs: np.ndarray) -> np.ndarray:
+        """``normalizer.normalize_obs(hold_constant_features(obs))`` bit for bit, from arrays computed once per
+        statistics (:mod:`bboxtune.agents.training.obs_normalization`)."""
         obs = np.asarray(obs, dtype=np.float32)
         if self.normalizer is None:
             return obs
-        return cast(np.ndarray, self.normalizer.normalize_obs(hold_constant_features(obs, self.normalizer)))  # not a Dict obs
+        if self._normalization is None or not self._normalization.matches(self.normalizer):
+            self._normalization = ObsNormalization.of(self.normalizer, constant_features(self.normalizer))
+        return self._normalization.apply(obs)
 
     def predict(self, obs: np.ndarray) -> np.ndarray:
         obs = self._normalized(obs)

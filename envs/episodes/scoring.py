@@ -90,6 +90,12 @@ def run_tracks(backend: str, ys: list[np.ndarray], taus: list[float], params: di
     return filters.track_positions(backend, [detections(backend, y) for y in ys], taus, _used(backend, params))
 
 
+def run_track(backend: str, y: np.ndarray, tau: float, params: dict[str, np.ndarray]) -> np.ndarray:
+    """``run_tracks(backend, [y], [tau], params)[0]`` for one track ``y`` (T, 4) and ``params`` arrays (1,), bit for
+    bit, with the filter cached per parameter values (:func:`bboxtune.filters.one_track_positions`): a tuner's rule."""
+    return filters.one_track_positions(backend, detections(backend, y), tau, _used(backend, params))
+
+
 def hold_missing(est: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
     """Estimates (A, T, 4) with every missing row (any NaN) that follows an estimate replaced by the last estimate
     before it (held), as a display behind a tracker keeps showing the last box. ``last`` (4,): the estimate shown

@@ -41,3 +41,16 @@ def test_tracks_of_different_lengths_and_intervals_equal_each_track_alone(name: 
         alone = filters.candidate_positions(name, ys[i], taus[i], _params(name, slice(i, i + 1)))[0]
         np.testing.assert_allclose(est[i], alone, rtol=1e-12, atol=1e-9)
 
+
+
+@pytest.mark.parametrize("name", filters.NAMES)
+def test_one_track_equals_track_positions_bit_for_bit_from_its_cached_filter(name: str) -> None:
+    """Each parameter set gets its own filter: repeated and interleaved calls give each set's own estimates."""
+    y, tau = _y(60, 4), 1 / 30
+    expected = [filters.track_positions(name, [y], [tau], _params(name, slice(i, i + 1)))[0] for i in range(3)]
+    for _ in range(2):
+        for i in range(3):
+            assert np.array_equal(filters.one_track_positions(name, y, tau, _params(name, slice(i, i + 1))),
+                                  expected[i], equal_nan=True)
+    if _params(name):  # a back end with parameters: the sets differ
+        assert not np.array_equal(expected[0], expected[2], equal_nan=True)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bboxtune import filters
-from bboxtune.filters.box_online import OnlineBoxKF
+from bboxtune.filters.box_online import OnlineBoxKF, track_params
 
 MODEL = filters.constant_velocity(1 / 25, ndim=4)
 
@@ -78,3 +78,20 @@ def test_bad_input_is_refused() -> None:
         online.update(np.array([[1.0, np.nan, 3.0, 4.0]]))
     with pytest.raises(TypeError, match="std_weight_position"):
         OnlineBoxKF(filters.make("bytetrack_kf", MODEL)).set_params(np.array([0]), {"std_weight_position": "1"})
+
+
+def test_set_params_checks_only_the_given_parameters_as_make_does() -> None:
+    """The parameters set equal track_params' (a filter built with them), and bad ones are refused by name."""
+    kf = filters.make("bytetrack_kf", MODEL)
+    online = OnlineBoxKF(kf)
+    online.start(np.array([[10.0, 10.0, 5.0, 5.0], [40.0, 20.0, 6.0, 9.0], [70.0, 30.0, 8.0, 12.0]]))
+    given = {"std_weight_position": np.array([0.2, 0.03]), "std_weight_velocity": 0.01}
+    expected = track_params(kf, online.params, np.array([2, 0]), given)
+    online.set_params(np.array([2, 0]), given)
+    assert online.params.keys() == expected.keys()
+    assert all(np.array_equal(online.params[k], expected[k]) for k in expected)
+    assert online.params["std_weight_position"].tolist() == [0.03, kf.params["std_weight_position"], 0.2]
+    with pytest.raises(ValueError, match="unknown parameter\\(s\\) \\['sigma_w'\\]"):
+        online.set_params(np.array([0]), {"sigma_w": 1.0})
+    with pytest.raises(ValueError, match="std_weight_velocity=.*out of range"):
+        online.set_params(np.array([0]), {"std_weight_velocity": -1.0})

@@ -107,3 +107,18 @@ def test_held_inputs_of_a_re_tuning_observation_are_named_by_its_env() -> None:
     norm.obs_rms.mean = np.zeros(len(names))
     assert describe_held_features({"ppo": norm}, {"ppo": names}) == "ppo: progress, track_log_tau"
     assert describe_held_features({"ppo": norm}) == f"ppo: obs[{names.index('progress')}], obs[{names.index('track_log_tau')}]"
+
+
+@pytest.mark.parametrize("var", [VAR, np.ones(3)])
+def test_the_policy_normalises_as_vecnormalize_bit_for_bit_and_follows_new_statistics(var: np.ndarray) -> None:
+    """SB3Policy's cached normalisation (bboxtune.agents.training.obs_normalization) equals
+    ``normalize_obs(hold_constant_features(obs))``, clipping included, and is rebuilt when the statistics change."""
+    norm = _normalizer(var)
+    policy = SB3Policy(SimpleNamespace(policy=None), norm, "ppo")  # type: ignore[arg-type]
+    obs = np.random.default_rng(0).normal(scale=50.0, size=(16, 3)).astype(np.float32)
+    for _ in range(2):
+        assert np.array_equal(policy._normalized(obs), norm.normalize_obs(hold_constant_features(obs, norm)))
+    norm.obs_rms.update(np.random.default_rng(1).normal(size=(8, 3)))  # new mean and var arrays
+    norm.clip_obs = 2.0
+    assert np.array_equal(policy._normalized(obs), norm.normalize_obs(hold_constant_features(obs, norm)))
+    assert np.abs(policy._normalized(obs)).max() == 2.0

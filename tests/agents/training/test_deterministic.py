@@ -7,6 +7,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+import torch as th
 from stable_baselines3 import A2C, PPO, SAC, TD3
 
 from bboxtune.agents.smoothing import pretrained
@@ -69,3 +70,15 @@ def test_actions_are_clipped_to_the_action_space() -> None:
     actions = deterministic_actions(model.policy, obs)
     assert np.array_equal(np.abs(actions), np.ones((3, 2), dtype=np.float32))  # the mean is 64 tanh units: clipped
     assert np.array_equal(actions, model.policy.predict(obs, deterministic=True)[0])
+
+
+def test_a_replaced_action_net_is_used_not_the_cached_one() -> None:
+    """The layers are worked out once per policy, and again when its action networks are other modules."""
+    model = PPO("MlpPolicy", _BoxEnv(), seed=0, device="cpu")
+    obs = _observations(4, 5)
+    before = deterministic_actions(model.policy, obs)
+    model.policy.action_net = th.nn.Linear(64, 2)
+    th.nn.init.constant_(model.policy.action_net.weight, 0.01)
+    after = deterministic_actions(model.policy, obs)
+    assert not np.array_equal(after, before)
+    assert np.array_equal(after, model.policy.predict(obs, deterministic=True)[0])
