@@ -129,7 +129,10 @@ class OnlineBoxKF:
         check_no_gap_policy(params)
         self.kf.check_names(params)
         self.params = replaced(self.params, rows, self.kf._validate(dict(params)))
-        self._noise = None
+        if self._noise is not None:  # the noise of the tracks ``rows`` only, the others' kept
+            fresh = self._variances_of({name: values[rows] for name, values in self.params.items()}, len(rows))
+            self._noise = (self._noise[0].put(rows, fresh[0]), self._noise[1].put(rows, fresh[1]),
+                           self._noise[2].put(rows, fresh[2]))
 
 
 def check_no_gap_policy(params: Mapping[str, Any]) -> None:

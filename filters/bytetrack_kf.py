@@ -119,6 +119,13 @@ class HeightVariance:
         """The variance of the tracks ``index`` (an int array; the last axis)."""
         return self._of(self.slope[..., index], self.offset[..., index], None if self.fixed is None else self.fixed[..., index])
 
+    def put(self, index: np.ndarray, other: HeightVariance) -> HeightVariance:
+        """This variance with the tracks ``index`` (an int array; the last axis) replaced by ``other``'s (as many
+        tracks): equal to the variance built afresh from the replaced pairs."""
+        slope, offset = self.slope.copy(), self.offset.copy()
+        slope[..., index], offset[..., index] = other.slope, other.offset
+        return self._of(slope, offset, None if slope.any() else np.square(offset))
+
     def join(self, other: HeightVariance) -> HeightVariance:
         """The tracks of this variance followed by those of ``other`` (same leading shape)."""
         fixed = None if self.fixed is None or other.fixed is None else np.concatenate([self.fixed, other.fixed], -1)

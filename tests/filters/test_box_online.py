@@ -95,3 +95,27 @@ def test_set_params_checks_only_the_given_parameters_as_make_does() -> None:
         online.set_params(np.array([0]), {"sigma_w": 1.0})
     with pytest.raises(ValueError, match="std_weight_velocity=.*out of range"):
         online.set_params(np.array([0]), {"std_weight_velocity": -1.0})
+
+
+@pytest.mark.parametrize("name", ["bytetrack_kf", "sort_kf_scaled"])
+def test_set_params_keeps_the_other_tracks_noise_and_equals_a_fresh_one(name: str) -> None:
+    """After ``set_params`` only the re-tuned tracks' noise is rebuilt: the next frames are bit for bit those of an
+    engine that rebuilds every track's noise, and they differ from the untuned engine's."""
+    rng = np.random.default_rng(5)
+    y = _tracks(rng, 8, 50)
+    y[:, 0] = np.array([300.0, 200.0, 40.0, 90.0])
+    engines = [OnlineBoxKF(filters.make(name, MODEL)) for _ in range(3)]
+    for online in engines:
+        online.start(y[:, 0])
+        for t in range(1, 10):
+            online.update(y[:, t])
+    names = filters.make(name, MODEL).PER_TRACK[:2]
+    rows = np.array([6, 1, 3])
+    for online in engines[:2]:
+        online.set_params(rows, {names[0]: np.array([0.3, 0.02, 0.1]), names[1]: 0.5})
+    engines[1]._noise = None  # rebuilt for every track on its next frame
+    got = [np.stack([online.update(y[:, t]) for t in range(10, 50)]) for online in engines]
+    np.testing.assert_array_equal(got[0], got[1])
+    assert not np.allclose(got[0][:, rows], got[2][:, rows], equal_nan=True)
+    others = np.setdiff1d(np.arange(8), rows)
+    np.testing.assert_array_equal(got[0][:, others], got[2][:, others])
