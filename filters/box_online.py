@@ -2,8 +2,8 @@
 frame at a time over a changing set of tracks, as a tracker runs them: predict every track, update the matched ones,
 start and end tracks between frames.
 
-The steps are the batch recursion's own (:meth:`BoxKF.predict_state`, :func:`bboxtune.filters.bytetrack_kf.update_state`,
-:func:`~bboxtune.filters.bytetrack_kf.initiate`), so a track's estimates equal ``run`` on its detections bit for bit
+The steps are the batch recursion's own (:meth:`BoxKF.predict_state`, :func:`bboxtune.filters.box_state.update_state`,
+:func:`~bboxtune.filters.box_state.initiate`), so a track's estimates equal ``run`` on its detections bit for bit
 (tested), at a fraction of ``run_from``'s per-call cost. Boxes are (cx, cy, w, h) px; parameters per track.
 
 >>> import numpy as np
@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 
 from bboxtune.filters.base import Filter
-from bboxtune.filters.bytetrack_kf import GAP_DECAYS, BoxKF, HeightVariance, M, check_boxes, initiate, update_state
+from bboxtune.filters.box_state import HeightVariance, initiate, update_state
+from bboxtune.filters.bytetrack_kf import GAP_DECAYS, BoxKF, M, check_boxes
 
 Variances = tuple[HeightVariance, HeightVariance, HeightVariance]  # (P₀, Q, R)
 

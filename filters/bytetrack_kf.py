@@ -43,7 +43,6 @@ array([[50.  , 60.  , 20.  , 40.  ],
 from __future__ import annotations
 
 from abc import abstractmethod
-from dataclasses import dataclass
 from typing import Any, ClassVar, cast
 
 import numpy as np
@@ -51,6 +50,7 @@ import numpy as np
 from bboxtune.filters import box_kf_kernels, gap_output, jit
 from bboxtune.filters.base import CHUNK_SAMPLES, Carry, Filter, not_started
 from bboxtune.filters.blocks import block_diagonal, coordinate_blocks
+from bboxtune.filters.box_state import _P, _P00, _P01, _P11, _V, HeightNoise, HeightVariance, initiate, update_state
 from bboxtune.filters.model import StateSpaceModel, check_model
 from bboxtune.filters.threads import limited_blas
 from bboxtune.filters.validation import check_range
@@ -85,64 +85,6 @@ def check_boxes(Y: np.ndarray) -> None:
                          f"w, h >= {SIZE_MIN:g}")
 
 
-@dataclass(frozen=True)
-class HeightNoise:
-    """The standard deviations of a :class:`BoxKF`, per coordinate and track, each affine in the height h:
-    std = slope · h + offset, as (slope, offset) pairs; ``start`` and ``process`` broadcast to (2, 4, n) (the
-    coordinates, then their rates), ``measurement`` to (4, n)."""
-
-    start: tuple[np.ndarray, np.ndarray]  # P₀, h = the first detection's height
-    process: tuple[np.ndarray, np.ndarray]  # Q, h = the current mean height
-    measurement: tuple[np.ndarray, np.ndarray]  # R, h = the predicted height
-
-
-class HeightVariance:
-    """The variance (slope · h + offset)² of one :class:`HeightNoise` pair, shaped (…, 4, n): computed once if the
-    slope is 0."""
-
-    def __init__(self, pair: tuple[np.ndarray, np.ndarray], shape: tuple[int, ...]) -> None:
-        self.slope, self.offset = (np.broadcast_to(a, shape) for a in pair)
-        self.fixed = None if self.slope.any() else np.square(self.offset)
-
-    @property
-    def pair(self) -> tuple[np.ndarray, np.ndarray]:
-        """(slope, offset), each of the full shape."""
-        return self.slope, self.offset
-
-    @classmethod
-    def _of(cls, slope: np.ndarray, offset: np.ndarray, fixed: np.ndarray | None) -> HeightVariance:
-        out = cls.__new__(cls)
-        out.slope, out.offset, out.fixed = slope, offset, fixed
-        return out
-
-    def take(self, index: np.ndarray) -> HeightVariance:
-        """The variance of the tracks ``index`` (an int array; the last axis)."""
-        return self._of(self.slope[..., index], self.offset[..., index], None if self.fixed is None else self.fixed[..., index])
-
-    def put(self, index: np.ndarray, other: HeightVariance) -> HeightVariance:
-        """This variance with the tracks ``index`` (an int array; the last axis) replaced by ``other``'s (as many
-        tracks): equal to the variance built afresh from the replaced pairs."""
-        slope, offset = self.slope.copy(), self.offset.copy()
-        slope[..., index], offset[..., index] = other.slope, other.offset
-        return self._of(slope, offset, None if slope.any() else np.square(offset))
-
-    def join(self, other: HeightVariance) -> HeightVariance:
-        """The tracks of this variance followed by those of ``other`` (same leading shape)."""
-        fixed = None if self.fixed is None or other.fixed is None else np.concatenate([self.fixed, other.fixed], -1)
-        return self._of(np.concatenate([self.slope, other.slope], -1), np.concatenate([self.offset, other.offset], -1),
-                        fixed)
-
-    def at(self, h: np.ndarray, rows: slice | np.ndarray = slice(None)) -> np.ndarray:
-        """At heights h (n,) (or of the tracks ``rows`` only)."""
-        if self.fixed is not None:
-            return self.fixed[..., rows]
-        return np.square(self.slope[..., rows] * h + self.offset[..., rows])
-
-
-# The state of n tracks is one array X (5, 4, n): per coordinate and track the mean [p, v] (v per frame) and the
-# covariance block [[P00, P01], [P01, P11]], in the order [p, v, P01, P00, P11] so that the paired steps of the
-# recursion are single slices; NaN for a track without a detection yet.
-_P, _V, _P01, _P00, _P11 = range(5)
 
 
 class BoxKF(Filter):
@@ -335,25 +277,6 @@ class BoxKF(Filter):
         tau = self.model.tau
         return np.stack([carry.x[:, :M].T, carry.x[:, M:].T * tau, blocks[..., 0, 1].T * tau, blocks[..., 0, 0].T,
                          blocks[..., 1, 1].T * tau**2])
-
-
-def update_state(X: np.ndarray, z: np.ndarray, R: HeightVariance, gate: np.ndarray | None) -> None:
-    """The update step on state X (5, 4, n) with measured coordinates z (4, n), in place (h: the predicted height):
-    S = H P Hᵀ + R, K = P Hᵀ S⁻¹ = [K0, K1], P ← P − K S Kᵀ; ``gate`` (n,) 0 where a track has no detection (its
-    z is 0 there: predict only), None when every track has one."""
-    K = X[_P01:_P00 + 1] / (X[_P00] + R.at(X[_P, 3]))  # [K1, K0]
-    if gate is not None:
-        K *= gate
-    X[_P:_V + 1] += K[::-1] * (z - X[_P])
-    X[_P11] -= K[0] * X[_P01]
-    X[_P01:_P00 + 1] -= K[1] * X[_P01:_P00 + 1]  # P01, P00 times (1 − K0)
-
-
-def initiate(X: np.ndarray, m: np.ndarray, P_start: HeightVariance, rows: np.ndarray) -> None:
-    """Start the tracks ``rows`` of state X (5, 4, n) at their first measured coordinates m (4, len(rows)), in place:
-    mean [m, 0], P₀ from the detection's height."""
-    X[_P][:, rows], X[_V][:, rows], X[_P01][:, rows] = m, 0.0, 0.0
-    X[_P00:][..., rows] = P_start.at(m[3], rows)
 
 
 class ByteTrackKF(BoxKF):

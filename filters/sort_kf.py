@@ -31,7 +31,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from bboxtune.filters.bytetrack_kf import BoxKF, HeightNoise
+from bboxtune.filters.box_state import HeightNoise
+from bboxtune.filters.bytetrack_kf import BoxKF
 
 
 def _column(*values: float) -> np.ndarray:

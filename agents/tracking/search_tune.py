@@ -42,7 +42,8 @@ from bboxtune.agents.tracking.search_kernels import AREA, LONGEST, choose_candid
 from bboxtune.envs.data.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from bboxtune.envs.data.metrics import iou
 from bboxtune.filters import jit
-from bboxtune.filters.bytetrack_kf import BoxKF, HeightVariance, M, check_boxes, initiate, update_state
+from bboxtune.filters.box_state import HeightVariance, initiate, update_state
+from bboxtune.filters.bytetrack_kf import BoxKF, M, check_boxes
 from bboxtune.filters.sort_kf import ScaledSortKF, SortKF
 
 if TYPE_CHECKING:
