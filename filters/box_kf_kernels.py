@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from bboxtune.filters import jit
+from bboxtune.filters.validation import VALUE_MAX
 
 
 @jit.kernel
@@ -83,13 +84,21 @@ def run_boxes(z: np.ndarray, detected: np.ndarray, first: np.ndarray, start: np.
 
 
 @jit.kernel
+def _one(values: np.ndarray, j: int) -> float:
+    """Track j's value of a per-track parameter (n,), or of one (1,) shared by every track."""
+    return values[0] if len(values) == 1 else values[j]
+
+
+@jit.kernel
 def bytetrack_positions(Y: np.ndarray, weight_position: np.ndarray, weight_velocity: np.ndarray, aspect: np.ndarray,
-                        aspect_rate: np.ndarray, aspect_measurement: np.ndarray, out: np.ndarray) -> bool:
-    """:meth:`bboxtune.filters.bytetrack_kf.ByteTrackKF.positions` of checked boxes ``Y`` (n, T, 4) cx, cy, w, h (NaN rows:
-    no detection) from the start, with the per-track parameters (n,) σ_p, σ_v, s_a, s_ȧ, s_m: ByteTrack's measured
-    coordinates (x, y, a = w / h, h) and noise pairs built as ``ByteTrackKF._measure`` / ``_noise`` build them, then
-    :func:`run_boxes` on all tracks at once, then the boxes (a h for w) in ``out`` (n, T, 4). Returns whether every
-    estimate from a track's first detection on is finite (False: the caller reports the failure)."""
+                        aspect_rate: np.ndarray, aspect_measurement: np.ndarray, size_min: float, out: np.ndarray) -> bool:
+    """:meth:`bboxtune.filters.bytetrack_kf.ByteTrackKF.positions` of boxes ``Y`` (n, T, 4) cx, cy, w, h (NaN rows:
+    no detection) from the start, with the parameters σ_p, σ_v, s_a, s_ȧ, s_m, each per track (n,) or one for all
+    (1,): ByteTrack's measured coordinates (x, y, a = w / h, h) and noise pairs built as ``ByteTrackKF._measure`` /
+    ``_noise`` build them, then :func:`run_boxes` on all tracks at once, then the boxes (a h for w) in ``out`` (n, T, 4).
+    Returns False, leaving ``out`` undefined, where a box is not one the filter takes (a row partly NaN, ±inf, an
+    entry beyond ``VALUE_MAX`` or w, h below ``size_min``: the caller's checks name it) or where an estimate from a
+    track's first detection on is not finite (the caller reports the failure); else True."""
     n, T, M = Y.shape
     z = np.zeros((T, M, n))
     detected = np.zeros((T, n), dtype=np.bool_)
@@ -98,19 +107,29 @@ def bytetrack_positions(Y: np.ndarray, weight_position: np.ndarray, weight_veloc
     measurement = np.zeros((2, M, n))
     for j in range(n):
         for t in range(T):
-            if not np.isnan(Y[j, t, 0]):
-                detected[t, j] = True
-                z[t, 0, j], z[t, 1, j], z[t, 3, j] = Y[j, t, 0], Y[j, t, 1], Y[j, t, 3]
-                z[t, 2, j] = Y[j, t, 2] / Y[j, t, 3]
-                if first[j] < 0:
-                    first[j] = t
+            missing = 0
+            for c in range(M):
+                value = Y[j, t, c]
+                if np.isnan(value):
+                    missing += 1
+                elif not abs(value) <= VALUE_MAX or (c >= 2 and value < size_min):
+                    return False
+            if missing == M:
+                continue
+            if missing:
+                return False
+            detected[t, j] = True
+            z[t, 0, j], z[t, 1, j], z[t, 3, j] = Y[j, t, 0], Y[j, t, 1], Y[j, t, 3]
+            z[t, 2, j] = Y[j, t, 2] / Y[j, t, 3]
+            if first[j] < 0:
+                first[j] = t
         for c in range(M):  # the height's coordinates x, y, h (mask 1) and the aspect a (mask 0), as _noise's columns
             on_height, on_aspect = (0.0, 1.0) if c == 2 else (1.0, 0.0)
-            w_p, w_v = on_height * weight_position[j], on_height * weight_velocity[j]
-            s_a, s_r = on_aspect * aspect[j], on_aspect * aspect_rate[j]
+            w_p, w_v = on_height * _one(weight_position, j), on_height * _one(weight_velocity, j)
+            s_a, s_r = on_aspect * _one(aspect, j), on_aspect * _one(aspect_rate, j)
             start[0, 0, c, j], start[0, 1, c, j], start[1, 0, c, j], start[1, 1, c, j] = 2 * w_p, 10 * w_v, s_a, s_r
             process[0, 0, c, j], process[0, 1, c, j], process[1, 0, c, j], process[1, 1, c, j] = w_p, w_v, s_a, s_r
-            measurement[0, c, j], measurement[1, c, j] = w_p, on_aspect * aspect_measurement[j]
+            measurement[0, c, j], measurement[1, c, j] = w_p, on_aspect * _one(aspect_measurement, j)
     fixed = np.array([not start[0].any(), not process[0].any(), not measurement[0].any()])
     X = np.full((5, M, n), np.nan)
     means = np.empty((T, 1, M, n))

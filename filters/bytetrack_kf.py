@@ -43,6 +43,7 @@ array([[50.  , 60.  , 20.  , 40.  ],
 from __future__ import annotations
 
 from abc import abstractmethod
+from functools import cached_property
 from typing import Any, ClassVar, cast
 
 import numpy as np
@@ -308,18 +309,35 @@ class ByteTrackKF(BoxKF):
         """As :meth:`BoxKF.positions`; with the compiled kernels one call of
         :func:`bboxtune.filters.box_kf_kernels.bytetrack_positions` (bit for bit the recursion's boxes, without its
         per-call numpy work: a few µs for the short tracks a tracker's tuner filters, against ~0.3 ms); with a gap
-        policy (a decay other than 1) the recursion's."""
+        policy (a decay other than 1) the recursion's. Parameters that are one value for all tracks and float (T, 4) /
+        (B, T, 4) boxes go straight to the kernel, which checks the boxes as it reads them; the recursion's checks
+        name what a rejected input got wrong."""
         if not jit.enabled():
             return super().positions(y, u)
+        shared = self._shared_stds
+        if shared is not None and u is None and isinstance(y, np.ndarray) and y.dtype == np.float64 and \
+                y.ndim in (2, 3) and y.shape[-1] == M:
+            Y = np.ascontiguousarray(y if y.ndim == 3 else y[None])
+            out = np.empty(Y.shape)
+            if box_kf_kernels.bytetrack_positions(Y, *shared, SIZE_MIN, out):
+                return out if y.ndim == 3 else out[0]
+            return super().positions(y, u)  # the recursion's error naming the track and frame
         Y, _, per_track, batched = self._inputs(y, u)
         if any((per_track[k] != 1.0).any() for k in GAP_DECAYS):  # a gap policy: the recursion with its gap output
             return super().positions(y, u)
-        check_boxes(Y)
         out = np.empty(Y.shape)
         stds = (per_track[k].astype(float) for k in self.PER_TRACK if k not in GAP_DECAYS)
-        if not box_kf_kernels.bytetrack_positions(np.ascontiguousarray(Y), *stds, out):
-            return super().positions(y, u)  # the recursion's: it raises the error naming the track and frame
+        if not box_kf_kernels.bytetrack_positions(np.ascontiguousarray(Y), *stds, SIZE_MIN, out):
+            return super().positions(y, u)  # the recursion's: it raises the error naming the box or the track and frame
         return out if batched else out[0]
+
+    @cached_property
+    def _shared_stds(self) -> tuple[np.ndarray, ...] | None:
+        """The noise parameters as (1,) float arrays when each is one value for every track and there is no gap
+        policy (the kernel's arguments for any batch); None otherwise."""
+        if any(np.ndim(v) for v in self.params.values()) or any(self.params[k] != 1.0 for k in GAP_DECAYS):
+            return None
+        return tuple(np.array([self.params[k]], dtype=float) for k in self.PER_TRACK if k not in GAP_DECAYS)
 
     def _noise(self, params: dict[str, np.ndarray]) -> HeightNoise:
         def column(name: str, mask: np.ndarray) -> np.ndarray:  # (4, n): the parameter on the coordinates of mask

@@ -51,7 +51,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
@@ -61,9 +61,9 @@ from numpy.typing import ArrayLike
 
 from bboxtune import filters
 from bboxtune.agents.policies.gate_file import GATE_FILE, Gate, read_gate
-from bboxtune.agents.smoothing import pretrained
+from bboxtune.agents.smoothing import observe_kernels, pretrained
 from bboxtune.envs.data.boxes import COORD_RULE, beyond_max_coord, cxcywh_to_xywh, xywh_to_cxcywh
-from bboxtune.envs.episodes.actions import ACCEPTS, ActionMap, Nominal
+from bboxtune.envs.episodes.actions import ACCEPTS, K_AXIS, ActionMap, Nominal
 from bboxtune.envs.episodes.config import EnvConfig, check_real
 from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.episode import rule_nominal as source_nominal  # the sources' own rule for given σ
@@ -72,6 +72,10 @@ from bboxtune.envs.episodes.scoring import box_model, run_positions, run_track
 from bboxtune.envs.episodes.sources import SimSource
 from bboxtune.envs.episodes.video_source import VideoSettings
 from bboxtune.envs.track_env import TrackEnv
+from bboxtune.filters import jit
+from bboxtune.filters.bytetrack_kf import GAP_DECAYS, SIZE_MIN, ByteTrackKF
+from bboxtune.filters.validation import SIGMA_RANGE
+from bboxtune.filters.validation import TAU_RANGE as FILTER_TAU_RANGE
 
 if TYPE_CHECKING:
     from stable_baselines3.common.vec_env import DummyVecEnv
@@ -85,6 +89,7 @@ MIN_FRAMES = 8  # the envs' shortest track
 MIN_MEASURED = 2  # a box scale and one difference
 SOURCE_ONLY = ("trackers", "mix_weights", "otb_speedup_max", "mot_root")  # env settings that EnvConfig refuses with source "sim"
 BACKEND_PARAMS = "backend_params"  # config.yml: back-end settings outside the tuner's action (module docstring)
+STD_WEIGHTS = tuple(k for k in ByteTrackKF.PER_TRACK if k not in GAP_DECAYS)  # bytetrack_kf's noise weights, in order
 
 
 def check_boxes(boxes: ArrayLike, name: str = "boxes") -> np.ndarray:
@@ -237,7 +242,33 @@ class Tuner:
         return self._observe(check_boxes(boxes), check_tau(tau))
 
     def _observe(self, xywh: np.ndarray, tau: float) -> Observation:
-        """:meth:`observe` of a track already checked (:func:`check_boxes`, :func:`check_tau`)."""
+        """:meth:`observe` of a track already checked (:func:`check_boxes`, :func:`check_tau`): by one compiled call
+        where the tuner has one (:attr:`_compiled_rule`), else by :meth:`_observe_steps`."""
+        rule = self._compiled_rule
+        if rule is not None and jit.enabled():
+            rel_v, rel_w, stds = rule
+            y, obs, sigma_v, sigma_w, horizon, valid = observe_kernels.box_observation(
+                xywh, tau, rel_v, rel_w, stds, SIZE_MIN, (K_AXIS, self.config.horizon_max), SIGMA_RANGE, FILTER_TAU_RANGE)
+            if valid:
+                nominal = Nominal(sigma_w=sigma_w, sigma_v=sigma_v, psi=self.config.nominal_psi, horizon=horizon)
+                return Observation(obs=obs.astype(np.float32), nominal=nominal, y=y, tau=tau)
+        return self._observe_steps(xywh, tau)
+
+    @cached_property
+    def _compiled_rule(self) -> tuple[float, float, np.ndarray] | None:
+        """For a ``bytetrack_kf`` tuner whose rule scales with the box (:func:`rule_nominal`'s OTB / MOT branch):
+        the rule's relative σ_v, σ_w and its filter's five noise weights (5, 1), the arguments of
+        :func:`bboxtune.agents.smoothing.observe_kernels.box_observation`; None for every other tuner."""
+        cfg = self.config
+        if self.backend != "bytetrack_kf" or cfg.source in ("sim", "video"):
+            return None
+        nominal = Nominal(sigma_w=1.0, sigma_v=1.0, psi=cfg.nominal_psi, horizon=K_AXIS)  # the weights only
+        weights = filters.filter_class(self.backend).DEFAULTS | {k: getattr(nominal, k) for k in ACCEPTS[self.backend]}
+        stds = np.array([[weights[k]] for k in STD_WEIGHTS], dtype=float)
+        return cfg.otb_sigma_v_rel, cfg.otb_sigma_w_rel, stds
+
+    def _observe_steps(self, xywh: np.ndarray, tau: float) -> Observation:
+        """:meth:`_observe` step by step (module docstring)."""
         y = xywh_to_cxcywh(xywh)
         nominal = rule_nominal(self.config, y, tau)
         track = Episode(truth=np.full_like(y, np.nan), y=y, tau=tau, nominal=nominal)  # no ground truth: none is used

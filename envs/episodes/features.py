@@ -221,13 +221,28 @@ def measurement_features(y: np.ndarray, tau: float | Sequence[float] | np.ndarra
     fixed-rule filter's position estimates, same shape, on the same measurements (the pilot filter);
     ``tau`` and the nominal σ: scalars or (B,)."""
     batched = y.ndim == 3
+    B = y.shape[0] if batched else 1
+    tau = _per_track(tau, B)
+    nominal = [np.asarray(s) for s in (nominal_sigma_v, nominal_sigma_w)]
+    if jit.enabled() and all(s.dtype.kind in "iuf" and s.ndim <= 1 for s in nominal):  # one compiled call
+        nominal_v, nominal_w = (_per_track(s, B) for s in nominal)
+        Y, rule = (np.ascontiguousarray(a if batched else a[None], dtype=float) for a in (y, rule_positions))
+        obs, valid = features_kernels.track_observations(Y, rule, tau, nominal_v, nominal_w, SIGMA_RANGE, TAU_RANGE)
+        if valid:
+            features = obs.astype(np.float32)
+            return features if batched else features[0]
     Y = _time_last(y if batched else y[None])  # (B, 4, T)
-    B, _, T = Y.shape
+    T = Y.shape[-1]
     stats = _statistics(Y, Y - _time_last(rule_positions if batched else rule_positions[None]))
-    tau = np.broadcast_to(np.asarray(tau, dtype=float), (B,))
     sv, sw = _sigmas(stats, tau, T)
     features = _observation(stats, tau, sv, sw, nominal_sigma_v, nominal_sigma_w, T).astype(np.float32)
     return features if batched else features[0]
+
+
+def _per_track(value: object, B: int) -> np.ndarray:
+    """A scalar or (B,) ``value`` as a contiguous float array (B,) (a scalar repeated)."""
+    arr = np.asarray(value, dtype=float)
+    return np.full(B, arr) if arr.ndim == 0 else np.ascontiguousarray(np.broadcast_to(arr, (B,)))
 
 
 def _observation(stats: np.ndarray, tau: np.ndarray, sv: np.ndarray, sw: np.ndarray, nominal_sigma_v: object,

@@ -236,3 +236,24 @@ def observation(stats: np.ndarray, tau: np.ndarray, sigma_v: np.ndarray, sigma_w
         out[b, 16], out[b, 17] = _log_var(s[RESID], scale), _correlation(s[RESID:RESID + 2], 1)
         out[b, 18], out[b, 19] = s[MISSING], math.log(n_frames)
     return out, valid
+
+
+@jit.kernel
+def track_observations(y: np.ndarray, rule: np.ndarray, tau: np.ndarray, nominal_v: np.ndarray, nominal_w: np.ndarray,
+                       sigma_range: tuple[float, float], tau_range: tuple[float, float]) -> tuple[np.ndarray, bool]:
+    """:func:`measurement_statistics`, :func:`sigmas` and :func:`observation` in one call (their results bit for bit)
+    from the measured boxes ``y`` and the fixed rule's position estimates ``rule`` (B, T, 4), τ and the nominal σ
+    (B,): the observations (B, 20) and whether every σ and τ lies in its allowed range. One call instead of three
+    and their numpy glue: what a tuner pays for every track it sees, most of all one track at a time."""
+    B, T, m = y.shape
+    series, resid = np.empty((B, m, T)), np.empty((B, m, T))
+    for b in range(B):
+        for j in range(m):
+            for t in range(T):
+                series[b, j, t] = y[b, t, j]
+                resid[b, j, t] = y[b, t, j] - rule[b, t, j]
+    stats = measurement_statistics(series, resid)
+    c0, c1 = np.ascontiguousarray(stats[:, D2_POS]), np.ascontiguousarray(stats[:, D2_POS + 1])
+    strided = np.ascontiguousarray(stats[:, STRIDED:STRIDED + len(STRIDES)])
+    sigma_v, sigma_w = sigmas(c0, c1, strided, tau, np.ascontiguousarray(stats[:, SCALE]), T)
+    return observation(stats, tau, sigma_v, sigma_w, nominal_v, nominal_w, T, sigma_range, tau_range)

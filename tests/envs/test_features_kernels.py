@@ -118,3 +118,24 @@ def test_invalid_nominal_raises_in_both_modes(nominal: object, error: type[Excep
         with pytest.MonkeyPatch.context() as mp, pytest.raises(error, match="sigma_v"):
             mp.setattr(jit, "ENABLED", enabled)
             features.measurement_features(y, 0.04, nominal, 10.0, y)
+
+
+@settings(max_examples=40, deadline=None)
+@given(tracks(min_frames=3), st.floats(0.01, 1.0), st.floats(0.1, 10.0))
+def test_the_one_call_observation_is_the_three_kernels_bit_for_bit(y: np.ndarray, tau: float, nominal: float) -> None:
+    """``track_observations`` (what ``measurement_features`` calls) = statistics, σ̂ and observation kernels in turn."""
+    k = features_kernels
+    B, T = y.shape[:2]
+    rule = y + np.random.default_rng(1).normal(0, 1, y.shape)
+    taus, nominal_v, nominal_w = tau * np.linspace(1.0, 2.0, B), np.full(B, nominal), np.full(B, 3 * nominal)
+    got, got_valid = k.track_observations(y, rule, taus, nominal_v, nominal_w, (1e-30, 1e30), (1e-6, 1e6))
+    Y = np.ascontiguousarray(np.swapaxes(y, 1, 2))
+    stats = k.measurement_statistics(Y, np.ascontiguousarray(Y - np.swapaxes(rule, 1, 2)))
+    c0, c1, strided, scale = (np.ascontiguousarray(stats[:, c]) for c in (k.D2_POS, k.D2_POS + 1,
+                                                                           slice(k.STRIDED, k.SCALE), k.SCALE))
+    sv, sw = k.sigmas(c0, c1, strided, taus, scale, T)
+    want, valid = k.observation(stats, taus, sv, sw, nominal_v, nominal_w, T, (1e-30, 1e30), (1e-6, 1e6))
+    assert got_valid == valid
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(features.measurement_features(y[0], tau, nominal, 3 * nominal, rule[0]),
+                                  want[0].astype(np.float32))

@@ -278,6 +278,41 @@ def test_input_errors() -> None:
         flt.run(y, u=np.zeros((2, 5, 2)))
 
 
+@pytest.mark.parametrize("shared", [True, False])
+@pytest.mark.parametrize(("row", "value", "match"), [
+    ((1, 2, 0), np.nan, r"y\[1, 2\] = .* is partly NaN"), ((0, 3, 3), 0.0, r"y\[0, 3\] has h = 0.0; allowed"),
+    ((0, 1, 2), 1e-31, r"y\[0, 1\] has w = 1e-31; allowed"), ((1, 0, 1), np.inf, r"y contains ±inf"),
+    ((1, 4, 0), -2e30, r"y contains 2e\+30; allowed")])
+def test_positions_name_a_bad_box_as_run_does(shared: bool, row: tuple[int, int, int], value: float, match: str) -> None:
+    """The compiled ``positions`` checks the boxes as it reads them (shared parameters: no other check first); a bad
+    box gets the recursion's error, for a batch and for one track."""
+    params = {} if shared else {"std_weight_position": np.full(2, 0.05)}
+    flt = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4), **params)
+    assert (flt._shared_stds is not None) == shared
+    bad = boxes(2, 5, 12, missing=0.0)
+    bad[row] = value
+    for call in (flt.run, flt.positions):
+        with pytest.raises(ValueError, match=match):
+            call(bad)
+    if shared:
+        with pytest.raises(ValueError, match=match.replace(rf"y\[{row[0]}, ", r"y\[0, ")):
+            flt.positions(bad[row[0]][None])
+
+
+def test_shared_parameters_give_the_per_track_boxes_bit_for_bit() -> None:
+    """One value for every track (the direct kernel call) and the same values per track (the checked path), for a
+    batch and for one track."""
+    y = boxes(4, 50, 3)
+    weights = {"std_weight_position": 0.03, "std_aspect_measurement": 0.2}
+    shared = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4), **weights)
+    per_track = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4),
+                             **{k: np.full(4, v) for k, v in weights.items()})
+    assert shared._shared_stds is not None and per_track._shared_stds is None
+    np.testing.assert_array_equal(shared.positions(y), per_track.positions(y))
+    np.testing.assert_array_equal(shared.positions(y[2]), per_track.positions(y)[2])
+    np.testing.assert_array_equal(shared.positions(y[2]), shared.run(y[2])[:, :4])
+
+
 def test_carry_errors() -> None:
     flt = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4))
     y = boxes(2, 5, 13, missing=0.0)
