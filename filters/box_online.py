@@ -18,6 +18,7 @@ The steps are the batch recursion's own (:meth:`BoxKF.predict_state`, :func:`bbo
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -27,11 +28,10 @@ from bboxtune.filters.base import Filter
 from bboxtune.filters.box_state import HeightVariance, initiate, update_state
 from bboxtune.filters.bytetrack_kf import GAP_DECAYS, BoxKF, M, check_boxes
 
-Variances = tuple[HeightVariance, HeightVariance, HeightVariance]  # (P₀, Q, R)
 # The noise table of n tracks, (NOISE_ROWS, n): per track the flattened (slope, offset) pairs of P₀ (2, 4), Q (2, 4)
 # and R (4,) (HeightNoise.start, .process, .measurement), in that order.
 _SHAPES = ((2, M), (2, M), (M,))
-_BOUNDS = tuple(int(b) for b in np.cumsum([0] + [int(np.prod(s)) for s in _SHAPES for _ in "so"]))
+_BOUNDS = tuple(np.cumsum([0] + [math.prod(shape) for shape in _SHAPES for _part in ("slope", "offset")]).tolist())
 NOISE_ROWS = _BOUNDS[-1]
 
 
@@ -53,7 +53,7 @@ class OnlineBoxKF:
         self._row = {name: i for i, name in enumerate(self._names)}
         self._values = np.empty((len(self._names), 0))  # the parameters of the live tracks, rows as _names
         self._table = np.empty((NOISE_ROWS, 0))  # their noise (the module's noise table)
-        self._noise: Variances | None = None  # (P₀, Q, R) of the live tracks: views of the table
+        self._noise: tuple[HeightVariance, HeightVariance] | None = None  # (Q, R) of the live tracks: table views
         self._stock: tuple[np.ndarray, np.ndarray] | None = None  # (values, table) of one track with kf's parameters
 
     @property
@@ -66,18 +66,22 @@ class OnlineBoxKF:
         """The live tracks' parameters ``{name: (n,)}`` (copies)."""
         return {name: self._values[i].copy() for i, name in enumerate(self._names)}
 
-    def _variances(self) -> Variances:
+    def _variances(self) -> tuple[HeightVariance, HeightVariance]:
+        """(Q, R) of the live tracks."""
         if self._noise is None:
-            self._noise = _table_variances(self._table)
+            self._noise = _table_variance(self._table, 1), _table_variance(self._table, 2)
         return self._noise
 
     def _noise_table(self, values: np.ndarray) -> np.ndarray:
         """The noise table (NOISE_ROWS, k) of k tracks with the parameters ``values`` (p, k) (rows as ``_names``)."""
         k = values.shape[1]
         noise = self.kf._noise({name: values[i] for i, name in enumerate(self._names)})
-        return np.concatenate([np.broadcast_to(a, (*shape, k)).reshape(-1, k)
-                               for pair, shape in zip((noise.start, noise.process, noise.measurement), _SHAPES)
-                               for a in pair])
+        table = np.empty((NOISE_ROWS, k))
+        for which, pair in enumerate((noise.start, noise.process, noise.measurement)):
+            for part, array in enumerate(pair):  # slope, offset
+                lo, hi = _BOUNDS[2 * which + part:2 * which + part + 2]
+                table[lo:hi].reshape(*_SHAPES[which], k)[...] = array  # a view of the table: broadcast into it
+        return table
 
     def _boxes(self, X: np.ndarray) -> np.ndarray:
         boxes = X[0].T.copy()
@@ -87,7 +91,7 @@ class OnlineBoxKF:
     def predict(self) -> np.ndarray:
         """(n, 4) the boxes every track is expected at in the next frame (the state is not changed)."""
         X = self.X.copy()
-        self.kf.predict_state(X, self._variances()[1])
+        self.kf.predict_state(X, self._variances()[0])
         return self._boxes(X)
 
     def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
@@ -103,7 +107,7 @@ class OnlineBoxKF:
         if boxes.shape != (self.n, M):
             raise ValueError(f"boxes has shape {boxes.shape}; allowed ({self.n}, {M}): one row per live track")
         check_boxes(boxes[None])
-        _, Q, R = self._variances()
+        Q, R = self._variances()
         z = self.kf._measure(boxes.T[None])[0]  # (4, n)
         detected = ~np.isnan(z[0])
         self.kf.predict_state(self.X, Q)
@@ -130,7 +134,7 @@ class OnlineBoxKF:
                 self._stock = one, self._noise_table(one)
             values, table = (np.repeat(a, k, axis=1) for a in self._stock)
         X = np.full((5, M, k), np.nan)
-        initiate(X, self.kf._measure(boxes.T[None])[0], _table_variances(table)[0], np.arange(k))
+        initiate(X, self.kf._measure(boxes.T[None])[0], _table_variance(table, 0), np.arange(k))
         self.X = np.concatenate([self.X, X], axis=2)
         self._values = np.concatenate([self._values, values], axis=1)
         self._table = np.concatenate([self._table, table], axis=1)
@@ -156,19 +160,18 @@ class OnlineBoxKF:
         self._noise = None
 
 
-def _table_variances(table: np.ndarray) -> Variances:
-    """(P₀, Q, R) of the tracks of a noise table (NOISE_ROWS, n), as views of it."""
-    n = table.shape[1]
-    parts = [table[lo:hi].reshape(*_SHAPES[i // 2], n) for i, (lo, hi) in enumerate(zip(_BOUNDS, _BOUNDS[1:]))]
-    return (HeightVariance.of_full(parts[0], parts[1]), HeightVariance.of_full(parts[2], parts[3]),
-            HeightVariance.of_full(parts[4], parts[5]))
+def _table_variance(table: np.ndarray, which: int) -> HeightVariance:
+    """P₀ (``which`` 0), Q (1) or R (2) of the tracks of a noise table (NOISE_ROWS, n), as views of it."""
+    lo, mid, hi = _BOUNDS[2 * which:2 * which + 3]
+    shape = (*_SHAPES[which], table.shape[1])
+    return HeightVariance.of_full(table[lo:mid].reshape(shape), table[mid:hi].reshape(shape))
 
 
 def check_no_gap_policy(params: Mapping[str, Any]) -> None:
     """ValueError if ``params`` set a gap policy (:mod:`bboxtune.filters.gap_output`): it shapes a smoothed track's
     output, while a tracker's filter predicts with its own model."""
     for name in GAP_DECAYS:
-        if np.any(np.asarray(params.get(name, 1.0)) != 1.0):
+        if name in params and np.any(np.asarray(params[name]) != 1.0):
             value = np.asarray(params[name]).tolist()
             raise ValueError(f"{name}={value!r}: the gap policy shapes a smoothed track's output inside detection gaps "
                              "(run, positions); a tracker's filter predicts with its own model: allowed 1 (the default)")

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from bboxtune import filters
-from bboxtune.filters.box_online import OnlineBoxKF, track_params
+from bboxtune.filters.box_online import OnlineBoxKF, _table_variance, track_params
+from bboxtune.filters.box_state import HeightVariance
 
 MODEL = filters.constant_velocity(1 / 25, ndim=4)
 
@@ -113,9 +114,45 @@ def test_set_params_keeps_the_other_tracks_noise_and_equals_a_fresh_one(name: st
     rows = np.array([6, 1, 3])
     for online in engines[:2]:
         online.set_params(rows, {names[0]: np.array([0.3, 0.02, 0.1]), names[1]: 0.5})
-    engines[1]._noise = None  # rebuilt for every track on its next frame
+    engines[1]._table = engines[1]._noise_table(engines[1]._values)  # every track's noise rebuilt
+    engines[1]._noise = None
     got = [np.stack([online.update(y[:, t]) for t in range(10, 50)]) for online in engines]
     np.testing.assert_array_equal(got[0], got[1])
     assert not np.allclose(got[0][:, rows], got[2][:, rows], equal_nan=True)
     others = np.setdiff1d(np.arange(8), rows)
     np.testing.assert_array_equal(got[0][:, others], got[2][:, others])
+
+
+@pytest.mark.parametrize("name", ["bytetrack_kf", "sort_kf_scaled", "sort_kf"])
+def test_noise_table_equals_a_full_rebuild(name: str) -> None:
+    """The noise columns that start and keep move and set_params rebuilds per track equal, bit for bit, the noise
+    built for all the live tracks at once from their parameters (as the batch recursion builds it)."""
+    rng = np.random.default_rng(6)
+    kf = filters.make(name, MODEL)
+    online = OnlineBoxKF(kf)
+    names = kf.PER_TRACK[:2]
+
+    def boxes(k: int) -> np.ndarray:
+        return np.array([300.0, 200.0, 40.0, 90.0]) + rng.normal(0, 5, (k, 4))
+
+    for step in range(40):
+        online.start(boxes(int(rng.integers(1, 4))))
+        if names and step % 3 == 0:
+            online.start(boxes(2), {names[0]: rng.uniform(0.01, 2.0, 2)})
+        if names:
+            rows = rng.choice(online.n, size=min(3, online.n), replace=False)
+            online.set_params(rows, {names[0]: rng.uniform(0.01, 2.0, len(rows)), names[1]: rng.uniform(0.01, 2.0)})
+        online.keep(rng.permutation(online.n)[:max(1, online.n - 1)])  # a track ends, the others are reordered
+        measured = boxes(online.n)
+        measured[rng.random(online.n) < 0.3] = np.nan
+        online.update(measured)
+    noise = kf._noise(online.params)
+    assert online.n > 10
+    for which, (pair, shape) in enumerate(zip((noise.start, noise.process, noise.measurement),
+                                              ((2, 4), (2, 4), (4,)), strict=True)):
+        want, got = HeightVariance(pair, (*shape, online.n)), _table_variance(online._table, which)
+        np.testing.assert_array_equal(got.slope, want.slope)
+        np.testing.assert_array_equal(got.offset, want.offset)
+        assert (got.fixed is None) == (want.fixed is None) == (name == "bytetrack_kf")
+        if want.fixed is not None:
+            np.testing.assert_array_equal(got.fixed, want.fixed)
