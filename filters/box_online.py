@@ -55,6 +55,7 @@ class OnlineBoxKF:
         self._table = np.empty((NOISE_ROWS, 0))  # their noise (the module's noise table)
         self._noise: tuple[HeightVariance, HeightVariance] | None = None  # (Q, R) of the live tracks: table views
         self._stock: tuple[np.ndarray, np.ndarray] | None = None  # (values, table) of one track with kf's parameters
+        self._predicted: np.ndarray | None = None  # the state predicted by predict(), until the tracks or noise change
 
     @property
     def n(self) -> int:
@@ -71,6 +72,10 @@ class OnlineBoxKF:
         if self._noise is None:
             self._noise = _table_variance(self._table, 1), _table_variance(self._table, 2)
         return self._noise
+
+    def _changed(self) -> None:
+        """The tracks or their noise changed: drop what was computed from them."""
+        self._noise = self._predicted = None
 
     def _noise_table(self, values: np.ndarray) -> np.ndarray:
         """The noise table (NOISE_ROWS, k) of k tracks with the parameters ``values`` (p, k) (rows as ``_names``)."""
@@ -89,9 +94,11 @@ class OnlineBoxKF:
         return boxes
 
     def predict(self) -> np.ndarray:
-        """(n, 4) the boxes every track is expected at in the next frame (the state is not changed)."""
+        """(n, 4) the boxes every track is expected at in the next frame (the state is not changed; the next
+        :meth:`update` starts from this prediction instead of computing it again)."""
         X = self.X.copy()
         self.kf.predict_state(X, self._variances()[0])
+        self._predicted = X
         return self._boxes(X)
 
     def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
@@ -110,7 +117,10 @@ class OnlineBoxKF:
         Q, R = self._variances()
         z = self.kf._measure(boxes.T[None])[0]  # (4, n)
         detected = ~np.isnan(z[0])
-        self.kf.predict_state(self.X, Q)
+        if self._predicted is None:
+            self.kf.predict_state(self.X, Q)
+        else:  # predict()'s: the same steps on the same state and noise
+            self.X, self._predicted = self._predicted, None
         update_state(self.X, np.where(detected, z, 0.0), R, None if detected.all() else detected.astype(float))
         return self._boxes(self.X)
 
@@ -138,12 +148,12 @@ class OnlineBoxKF:
         self.X = np.concatenate([self.X, X], axis=2)
         self._values = np.concatenate([self._values, values], axis=1)
         self._table = np.concatenate([self._table, table], axis=1)
-        self._noise = None
+        self._changed()
 
     def keep(self, index: np.ndarray) -> None:
         """Keep only the tracks ``index`` (an int array), in that order."""
         self.X, self._values, self._table = self.X[:, :, index], self._values[:, index], self._table[:, index]
-        self._noise = None
+        self._changed()
 
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
         """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on.
@@ -157,7 +167,7 @@ class OnlineBoxKF:
             values[self._row[name], rows] = value
         self._table[:, rows] = self._noise_table(values[:, rows])
         self._values = values
-        self._noise = None
+        self._changed()
 
 
 def _table_variance(table: np.ndarray, which: int) -> HeightVariance:

@@ -115,7 +115,7 @@ def test_set_params_keeps_the_other_tracks_noise_and_equals_a_fresh_one(name: st
     for online in engines[:2]:
         online.set_params(rows, {names[0]: np.array([0.3, 0.02, 0.1]), names[1]: 0.5})
     engines[1]._table = engines[1]._noise_table(engines[1]._values)  # every track's noise rebuilt
-    engines[1]._noise = None
+    engines[1]._changed()
     got = [np.stack([online.update(y[:, t]) for t in range(10, 50)]) for online in engines]
     np.testing.assert_array_equal(got[0], got[1])
     assert not np.allclose(got[0][:, rows], got[2][:, rows], equal_nan=True)
@@ -156,3 +156,31 @@ def test_noise_table_equals_a_full_rebuild(name: str) -> None:
         assert (got.fixed is None) == (want.fixed is None) == (name == "bytetrack_kf")
         if want.fixed is not None:
             np.testing.assert_array_equal(got.fixed, want.fixed)
+
+
+@pytest.mark.parametrize("name", ["bytetrack_kf", "sort_kf", "sort_kf_scaled"])
+def test_update_after_predict_equals_update_alone(name: str) -> None:
+    """An update right after predict() starts from its predicted state: bit for bit the update that predicts itself,
+    also when tracks end, start or are re-tuned between the two calls."""
+    rng = np.random.default_rng(8)
+    y = _tracks(rng, 10, 60)
+    kf = filters.make(name, MODEL)
+    engines = [OnlineBoxKF(kf) for _ in range(2)]  # engines[0] predicts before every update
+    cols = list(range(6))  # the track of each engine column
+    first = np.array([300.0, 200.0, 40.0, 90.0]) + rng.normal(0, 5, (6, 4))
+    for online in engines:
+        online.start(first)
+    for t in range(1, 60):
+        engines[0].predict()
+        if t % 7 == 3:  # a track ends, the others are reordered, another starts
+            kept = rng.permutation(len(cols))[1:]
+            born = np.array([[300.0, 200.0, 40.0, 90.0]]) + rng.normal(0, 5, (1, 4))
+            for online in engines:
+                online.keep(kept)
+                online.start(born)
+            cols = [cols[i] for i in kept] + [next(i for i in range(10) if i not in cols)]
+        elif kf.PER_TRACK and t % 5 == 0:
+            for online in engines:
+                online.set_params(np.array([1, 3]), {kf.PER_TRACK[0]: 0.5 + t / 100})
+        got, want = (online.update(y[cols, t]) for online in engines)
+        np.testing.assert_array_equal(got, want)
