@@ -18,6 +18,7 @@ The steps are the batch recursion's own (:meth:`BoxKF.predict_state`, :func:`bbo
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -27,12 +28,20 @@ from bboxtune.filters.base import Filter
 from bboxtune.filters.box_state import HeightVariance, initiate, update_state
 from bboxtune.filters.bytetrack_kf import GAP_DECAYS, BoxKF, M, check_boxes
 
-Variances = tuple[HeightVariance, HeightVariance, HeightVariance]  # (P₀, Q, R)
+# The noise table of n tracks, (NOISE_ROWS, n): per track the flattened (slope, offset) pairs of P₀ (2, 4), Q (2, 4)
+# and R (4,) (HeightNoise.start, .process, .measurement), in that order.
+_SHAPES = ((2, M), (2, M), (M,))
+_BOUNDS = tuple(np.cumsum([0] + [math.prod(shape) for shape in _SHAPES for _part in ("slope", "offset")]).tolist())
+NOISE_ROWS = _BOUNDS[-1]
 
 
 class OnlineBoxKF:
     """``kf``'s recursion for n live tracks (columns of the state), each with its own parameters; new tracks start
-    with ``kf``'s parameters."""
+    with ``kf``'s parameters.
+
+    Per track it keeps the parameters (one column of a (p, n) array) and the noise they give (one column of the noise
+    table): starting, ending and re-tuning tracks move or rebuild whole columns, and a track's column is the one
+    ``kf._noise`` gives its parameters (tested against a full rebuild)."""
 
     def __init__(self, kf: BoxKF) -> None:
         if not isinstance(kf, BoxKF):
@@ -40,25 +49,44 @@ class OnlineBoxKF:
         check_no_gap_policy(kf.params)
         self.kf = kf
         self.X = np.empty((5, M, 0))  # [p, v, P01, P00, P11] per coordinate and track (bboxtune.filters.bytetrack_kf)
-        self.params: dict[str, np.ndarray] = {name: np.empty(0) for name in kf.PER_TRACK}
-        self._noise: Variances | None = None  # (P₀, Q, R) of the live tracks
-        self._stock: Variances | None = None  # those of one track with kf's parameters
+        self._names = tuple(kf.PER_TRACK)
+        self._row = {name: i for i, name in enumerate(self._names)}
+        self._values = np.empty((len(self._names), 0))  # the parameters of the live tracks, rows as _names
+        self._table = np.empty((NOISE_ROWS, 0))  # their noise (the module's noise table)
+        self._noise: tuple[HeightVariance, HeightVariance] | None = None  # (Q, R) of the live tracks: table views
+        self._stock: tuple[np.ndarray, np.ndarray] | None = None  # (values, table) of one track with kf's parameters
+        self._predicted: np.ndarray | None = None  # the state predicted by predict(), until the tracks or noise change
 
     @property
     def n(self) -> int:
         """Live tracks."""
         return self.X.shape[2]
 
-    def _variances(self) -> Variances:
+    @property
+    def params(self) -> dict[str, np.ndarray]:
+        """The live tracks' parameters ``{name: (n,)}`` (copies)."""
+        return {name: self._values[i].copy() for i, name in enumerate(self._names)}
+
+    def _variances(self) -> tuple[HeightVariance, HeightVariance]:
+        """(Q, R) of the live tracks."""
         if self._noise is None:
-            self._noise = self._variances_of(self.params, self.n)
+            self._noise = _table_variance(self._table, 1), _table_variance(self._table, 2)
         return self._noise
 
-    def _variances_of(self, params: Mapping[str, np.ndarray], n: int) -> Variances:
-        """(P₀, Q, R) of n tracks with ``params`` (``{name: (n,)}``)."""
-        noise = self.kf._noise(dict(params))
-        return (HeightVariance(noise.start, (2, M, n)), HeightVariance(noise.process, (2, M, n)),
-                HeightVariance(noise.measurement, (M, n)))
+    def _changed(self) -> None:
+        """The tracks or their noise changed: drop what was computed from them."""
+        self._noise = self._predicted = None
+
+    def _noise_table(self, values: np.ndarray) -> np.ndarray:
+        """The noise table (NOISE_ROWS, k) of k tracks with the parameters ``values`` (p, k) (rows as ``_names``)."""
+        k = values.shape[1]
+        noise = self.kf._noise({name: values[i] for i, name in enumerate(self._names)})
+        table = np.empty((NOISE_ROWS, k))
+        for which, pair in enumerate((noise.start, noise.process, noise.measurement)):
+            for part, array in enumerate(pair):  # slope, offset
+                lo, hi = _BOUNDS[2 * which + part:2 * which + part + 2]
+                table[lo:hi].reshape(*_SHAPES[which], k)[...] = array  # a view of the table: broadcast into it
+        return table
 
     def _boxes(self, X: np.ndarray) -> np.ndarray:
         boxes = X[0].T.copy()
@@ -66,9 +94,11 @@ class OnlineBoxKF:
         return boxes
 
     def predict(self) -> np.ndarray:
-        """(n, 4) the boxes every track is expected at in the next frame (the state is not changed)."""
+        """(n, 4) the boxes every track is expected at in the next frame (the state is not changed; the next
+        :meth:`update` starts from this prediction instead of computing it again)."""
         X = self.X.copy()
-        self.kf.predict_state(X, self._variances()[1])
+        self.kf.predict_state(X, self._variances()[0])
+        self._predicted = X
         return self._boxes(X)
 
     def update(self, boxes: np.ndarray, births: np.ndarray | None = None) -> np.ndarray:
@@ -84,10 +114,13 @@ class OnlineBoxKF:
         if boxes.shape != (self.n, M):
             raise ValueError(f"boxes has shape {boxes.shape}; allowed ({self.n}, {M}): one row per live track")
         check_boxes(boxes[None])
-        _, Q, R = self._variances()
+        Q, R = self._variances()
         z = self.kf._measure(boxes.T[None])[0]  # (4, n)
         detected = ~np.isnan(z[0])
-        self.kf.predict_state(self.X, Q)
+        if self._predicted is None:
+            self.kf.predict_state(self.X, Q)
+        else:  # predict()'s: the same steps on the same state and noise
+            self.X, self._predicted = self._predicted, None
         update_state(self.X, np.where(detected, z, 0.0), R, None if detected.all() else detected.astype(float))
         return self._boxes(self.X)
 
@@ -101,54 +134,57 @@ class OnlineBoxKF:
         k = len(boxes)
         if params:
             check_no_gap_policy(params)
-        given = type(self.kf)(self.kf.model, **{**self.kf.params, **params}).params if params else self.kf.params
-        fresh = {name: np.broadcast_to(given[name], (k,)) for name in self.params}
-        if params:
-            noise = self._variances_of(fresh, k)
+            given = type(self.kf)(self.kf.model, **{**self.kf.params, **params}).params
+            values = np.array([np.broadcast_to(given[name], (k,)) for name in self._names], dtype=float).reshape(-1, k)
+            table = self._noise_table(values)
         else:  # the template's noise, once per filter
             if self._stock is None:
-                self._stock = self._variances_of({name: np.broadcast_to(given[name], (1,)) for name in self.params}, 1)
-            noise = _columns(self._stock, np.zeros(k, dtype=np.int64))
+                one = np.array([np.broadcast_to(self.kf.params[name], (1,)) for name in self._names],
+                               dtype=float).reshape(-1, 1)
+                self._stock = one, self._noise_table(one)
+            values, table = (np.repeat(a, k, axis=1) for a in self._stock)
         X = np.full((5, M, k), np.nan)
-        initiate(X, self.kf._measure(boxes.T[None])[0], noise[0], np.arange(k))
+        initiate(X, self.kf._measure(boxes.T[None])[0], _table_variance(table, 0), np.arange(k))
         self.X = np.concatenate([self.X, X], axis=2)
-        self.params = {name: np.concatenate([self.params[name], fresh[name]]) for name in self.params}
-        if self._noise is not None:  # the live tracks' noise, then the new ones'
-            self._noise = (self._noise[0].join(noise[0]), self._noise[1].join(noise[1]), self._noise[2].join(noise[2]))
+        self._values = np.concatenate([self._values, values], axis=1)
+        self._table = np.concatenate([self._table, table], axis=1)
+        self._changed()
 
     def keep(self, index: np.ndarray) -> None:
         """Keep only the tracks ``index`` (an int array), in that order."""
-        self.X = self.X[:, :, index]
-        self.params = {name: values[index] for name, values in self.params.items()}
-        if self._noise is not None:
-            self._noise = _columns(self._noise, index)
+        self.X, self._values, self._table = self.X[:, :, index], self._values[:, index], self._table[:, index]
+        self._changed()
 
     def set_params(self, rows: np.ndarray, params: Mapping[str, Any]) -> None:
         """The tracks ``rows`` use ``params`` (``{name: scalar or (len(rows),)}``, checked) from the next frame on.
         A box filter checks each parameter on its own (:meth:`BoxKF._validate`), so only those given are checked,
-        without building a filter as :func:`track_params` does (a re-tuning tracker calls this every frame)."""
+        without building a filter as :func:`track_params` does (a re-tuning tracker calls this every frame); only
+        the noise of the tracks ``rows`` is rebuilt."""
         check_no_gap_policy(params)
         self.kf.check_names(params)
-        self.params = replaced(self.params, rows, self.kf._validate(dict(params)))
-        if self._noise is not None:  # the noise of the tracks ``rows`` only, the others' kept
-            fresh = self._variances_of({name: values[rows] for name, values in self.params.items()}, len(rows))
-            self._noise = (self._noise[0].put(rows, fresh[0]), self._noise[1].put(rows, fresh[1]),
-                           self._noise[2].put(rows, fresh[2]))
+        values = self._values.copy()
+        for name, value in self.kf._validate(dict(params)).items():
+            values[self._row[name], rows] = value
+        self._table[:, rows] = self._noise_table(values[:, rows])
+        self._values = values
+        self._changed()
+
+
+def _table_variance(table: np.ndarray, which: int) -> HeightVariance:
+    """P₀ (``which`` 0), Q (1) or R (2) of the tracks of a noise table (NOISE_ROWS, n), as views of it."""
+    lo, mid, hi = _BOUNDS[2 * which:2 * which + 3]
+    shape = (*_SHAPES[which], table.shape[1])
+    return HeightVariance.of_full(table[lo:mid].reshape(shape), table[mid:hi].reshape(shape))
 
 
 def check_no_gap_policy(params: Mapping[str, Any]) -> None:
     """ValueError if ``params`` set a gap policy (:mod:`bboxtune.filters.gap_output`): it shapes a smoothed track's
     output, while a tracker's filter predicts with its own model."""
     for name in GAP_DECAYS:
-        if np.any(np.asarray(params.get(name, 1.0)) != 1.0):
+        if name in params and np.any(np.asarray(params[name]) != 1.0):
             value = np.asarray(params[name]).tolist()
             raise ValueError(f"{name}={value!r}: the gap policy shapes a smoothed track's output inside detection gaps "
                              "(run, positions); a tracker's filter predicts with its own model: allowed 1 (the default)")
-
-
-def _columns(noise: Variances, index: np.ndarray) -> Variances:
-    """(P₀, Q, R) of the tracks ``index``."""
-    return noise[0].take(index), noise[1].take(index), noise[2].take(index)
 
 
 def track_params(f: Filter, current: Mapping[str, np.ndarray], rows: np.ndarray, params: Mapping[str, Any]

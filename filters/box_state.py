@@ -40,27 +40,13 @@ class HeightVariance:
         return self.slope, self.offset
 
     @classmethod
-    def _of(cls, slope: np.ndarray, offset: np.ndarray, fixed: np.ndarray | None) -> HeightVariance:
+    def of_full(cls, slope: np.ndarray, offset: np.ndarray) -> HeightVariance:
+        """The variance of a (slope, offset) pair already of the full shape (…, 4, n), as the arrays (views kept, not
+        copied): what ``HeightVariance((slope, offset), slope.shape)`` computes, without its broadcasting."""
         out = cls.__new__(cls)
-        out.slope, out.offset, out.fixed = slope, offset, fixed
+        out.slope, out.offset = slope, offset
+        out.fixed = None if np.count_nonzero(slope) else np.square(offset)  # as slope.any(), faster
         return out
-
-    def take(self, index: np.ndarray) -> HeightVariance:
-        """The variance of the tracks ``index`` (an int array; the last axis)."""
-        return self._of(self.slope[..., index], self.offset[..., index], None if self.fixed is None else self.fixed[..., index])
-
-    def put(self, index: np.ndarray, other: HeightVariance) -> HeightVariance:
-        """This variance with the tracks ``index`` (an int array; the last axis) replaced by ``other``'s (as many
-        tracks): equal to the variance built afresh from the replaced pairs."""
-        slope, offset = self.slope.copy(), self.offset.copy()
-        slope[..., index], offset[..., index] = other.slope, other.offset
-        return self._of(slope, offset, None if slope.any() else np.square(offset))
-
-    def join(self, other: HeightVariance) -> HeightVariance:
-        """The tracks of this variance followed by those of ``other`` (same leading shape)."""
-        fixed = None if self.fixed is None or other.fixed is None else np.concatenate([self.fixed, other.fixed], -1)
-        return self._of(np.concatenate([self.slope, other.slope], -1), np.concatenate([self.offset, other.offset], -1),
-                        fixed)
 
     def at(self, h: np.ndarray, rows: slice | np.ndarray = slice(None)) -> np.ndarray:
         """At heights h (n,) (or of the tracks ``rows`` only)."""

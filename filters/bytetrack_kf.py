@@ -344,12 +344,14 @@ class ByteTrackKF(BoxKF):
             return mask[:, None] * params[name]
 
         w_p, w_v = column("std_weight_position", _HEIGHT), column("std_weight_velocity", _HEIGHT)
-        s_a = np.stack([column("std_aspect", _ASPECT), column("std_aspect_rate", _ASPECT)])
-        return HeightNoise(start=(np.stack([2 * w_p, 10 * w_v]), s_a), process=(np.stack([w_p, w_v]), s_a),
+        s_a = np.array([column("std_aspect", _ASPECT), column("std_aspect_rate", _ASPECT)])  # np.stack's, faster
+        return HeightNoise(start=(np.array([2 * w_p, 10 * w_v]), s_a), process=(np.array([w_p, w_v]), s_a),
                            measurement=(w_p, column("std_aspect_measurement", _ASPECT)))
 
     def _measure(self, Y: np.ndarray) -> np.ndarray:
-        return np.stack([Y[:, 0], Y[:, 1], Y[:, 2] / Y[:, 3], Y[:, 3]], axis=1)  # (x, y, a, h)
+        z = Y.copy()  # (x, y, a, h)
+        z[:, 2] = Y[:, 2] / Y[:, 3]
+        return z
 
     def _to_boxes(self, S: np.ndarray) -> None:
         a, h = S[..., 2].copy(), S[..., 3]

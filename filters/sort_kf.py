@@ -58,8 +58,9 @@ class SortKF(BoxKF):
         return NOISE
 
     def _measure(self, Y: np.ndarray) -> np.ndarray:
-        w, h = Y[:, 2], Y[:, 3]
-        return np.stack([Y[:, 0], Y[:, 1], w * h, w / h], axis=1)  # (u, v, s, r)
+        z = Y.copy()  # (u, v, s, r)
+        z[:, 2], z[:, 3] = Y[:, 2] * Y[:, 3], Y[:, 2] / Y[:, 3]
+        return z
 
     def _before_predict(self, X: np.ndarray) -> None:
         s, rate = X[0, 2], X[1, 2]  # the area's mean and rate (X[0]: the means, X[1]: the rates)

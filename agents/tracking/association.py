@@ -91,10 +91,8 @@ def assign(overlap: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarra
     n, m = overlap.shape
     pairs = np.empty((0, 2), dtype=np.int64)
     if n and m:
-        above = overlap > threshold
-        if above.sum(axis=0).max() <= 1 and above.sum(axis=1).max() <= 1:  # already one-to-one: SORT takes it
-            rows, cols = np.nonzero(above)
-        else:
+        rows, cols = np.nonzero(overlap > threshold)  # SORT takes these pairs where they are one-to-one
+        if len(set(rows.tolist())) < len(rows) or len(set(cols.tolist())) < len(cols):
             rows, cols = linear_sum_assignment(overlap, maximize=True)
         keep = overlap[rows, cols] >= threshold
         pairs = np.stack([rows[keep], cols[keep]], axis=1).astype(np.int64)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from bboxtune import filters
-from bboxtune.filters.box_online import OnlineBoxKF, track_params
+from bboxtune.filters.box_online import OnlineBoxKF, _table_variance, track_params
+from bboxtune.filters.box_state import HeightVariance
 
 MODEL = filters.constant_velocity(1 / 25, ndim=4)
 
@@ -113,9 +114,73 @@ def test_set_params_keeps_the_other_tracks_noise_and_equals_a_fresh_one(name: st
     rows = np.array([6, 1, 3])
     for online in engines[:2]:
         online.set_params(rows, {names[0]: np.array([0.3, 0.02, 0.1]), names[1]: 0.5})
-    engines[1]._noise = None  # rebuilt for every track on its next frame
+    engines[1]._table = engines[1]._noise_table(engines[1]._values)  # every track's noise rebuilt
+    engines[1]._changed()
     got = [np.stack([online.update(y[:, t]) for t in range(10, 50)]) for online in engines]
     np.testing.assert_array_equal(got[0], got[1])
     assert not np.allclose(got[0][:, rows], got[2][:, rows], equal_nan=True)
     others = np.setdiff1d(np.arange(8), rows)
     np.testing.assert_array_equal(got[0][:, others], got[2][:, others])
+
+
+@pytest.mark.parametrize("name", ["bytetrack_kf", "sort_kf_scaled", "sort_kf"])
+def test_noise_table_equals_a_full_rebuild(name: str) -> None:
+    """The noise columns that start and keep move and set_params rebuilds per track equal, bit for bit, the noise
+    built for all the live tracks at once from their parameters (as the batch recursion builds it)."""
+    rng = np.random.default_rng(6)
+    kf = filters.make(name, MODEL)
+    online = OnlineBoxKF(kf)
+    names = kf.PER_TRACK[:2]
+
+    def boxes(k: int) -> np.ndarray:
+        return np.array([300.0, 200.0, 40.0, 90.0]) + rng.normal(0, 5, (k, 4))
+
+    for step in range(40):
+        online.start(boxes(int(rng.integers(1, 4))))
+        if names and step % 3 == 0:
+            online.start(boxes(2), {names[0]: rng.uniform(0.01, 2.0, 2)})
+        if names:
+            rows = rng.choice(online.n, size=min(3, online.n), replace=False)
+            online.set_params(rows, {names[0]: rng.uniform(0.01, 2.0, len(rows)), names[1]: rng.uniform(0.01, 2.0)})
+        online.keep(rng.permutation(online.n)[:max(1, online.n - 1)])  # a track ends, the others are reordered
+        measured = boxes(online.n)
+        measured[rng.random(online.n) < 0.3] = np.nan
+        online.update(measured)
+    noise = kf._noise(online.params)
+    assert online.n > 10
+    for which, (pair, shape) in enumerate(zip((noise.start, noise.process, noise.measurement),
+                                              ((2, 4), (2, 4), (4,)), strict=True)):
+        want, got = HeightVariance(pair, (*shape, online.n)), _table_variance(online._table, which)
+        np.testing.assert_array_equal(got.slope, want.slope)
+        np.testing.assert_array_equal(got.offset, want.offset)
+        assert (got.fixed is None) == (want.fixed is None) == (name == "bytetrack_kf")
+        if want.fixed is not None:
+            np.testing.assert_array_equal(got.fixed, want.fixed)
+
+
+@pytest.mark.parametrize("name", ["bytetrack_kf", "sort_kf", "sort_kf_scaled"])
+def test_update_after_predict_equals_update_alone(name: str) -> None:
+    """An update right after predict() starts from its predicted state: bit for bit the update that predicts itself,
+    also when tracks end, start or are re-tuned between the two calls."""
+    rng = np.random.default_rng(8)
+    y = _tracks(rng, 10, 60)
+    kf = filters.make(name, MODEL)
+    engines = [OnlineBoxKF(kf) for _ in range(2)]  # engines[0] predicts before every update
+    cols = list(range(6))  # the track of each engine column
+    first = np.array([300.0, 200.0, 40.0, 90.0]) + rng.normal(0, 5, (6, 4))
+    for online in engines:
+        online.start(first)
+    for t in range(1, 60):
+        engines[0].predict()
+        if t % 7 == 3:  # a track ends, the others are reordered, another starts
+            kept = rng.permutation(len(cols))[1:]
+            born = np.array([[300.0, 200.0, 40.0, 90.0]]) + rng.normal(0, 5, (1, 4))
+            for online in engines:
+                online.keep(kept)
+                online.start(born)
+            cols = [cols[i] for i in kept] + [next(i for i in range(10) if i not in cols)]
+        elif kf.PER_TRACK and t % 5 == 0:
+            for online in engines:
+                online.set_params(np.array([1, 3]), {kf.PER_TRACK[0]: 0.5 + t / 100})
+        got, want = (online.update(y[cols, t]) for online in engines)
+        np.testing.assert_array_equal(got, want)
