@@ -27,7 +27,9 @@ The observation is computed by the env's own code for an episode of the tuner's 
 filter run (:func:`bboxtune.envs.episodes.scoring.run_track`), then
 :func:`bboxtune.envs.episodes.features.measurement_features` — so it equals
 the env's reset observation on the same measurements (tested), and the parameters equal what ``env.step``
-applies for the policy's action. Smoothed boxes are the back end's position estimates; frames before the
+applies for the policy's action. A ``bytetrack_kf`` tuner whose rule scales with the box (OTB and MOT sources, e.g.
+``mot15_det``) runs these steps as one compiled call (:mod:`bboxtune.agents.smoothing.observe_kernels`, bit for bit).
+Smoothed boxes are the back end's position estimates; frames before the
 first measured one have no estimate (NaN rows), later missing frames are predicted.
 
 Back-end settings outside the tuner's action (``backend_params`` in its ``config.yml``, a mapping of parameter
