@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bboxtune import filters
+from bboxtune.filters import jit
 from bboxtune.filters.base import Carry
 from bboxtune.filters.box_online import OnlineBoxKF
 from bboxtune.filters.bytetrack_kf import GAP_DECAYS, STD_RANGE
@@ -413,6 +414,7 @@ def test_a_tracker_refuses_a_gap_policy() -> None:
 def test_compiled_positions_leave_a_non_finite_estimate_to_the_recursion(monkeypatch: pytest.MonkeyPatch) -> None:
     """The kernel of ``positions`` reports a non-finite estimate after a track's start; the recursion then runs and
     raises its error naming the track and frame (here: it runs, and gives the same boxes)."""
+    monkeypatch.setattr(jit, "ENABLED", True)  # the kernels, whatever $BBOXTUNE_JIT says
     y = boxes(3, 40, 21)
     flt = filters.make("bytetrack_kf", filters.constant_velocity(TAU, ndim=4), **random_params(3, 22))
     calls: list[int] = []

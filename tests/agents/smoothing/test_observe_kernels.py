@@ -62,6 +62,7 @@ def test_the_compiled_observation_is_the_steps_bit_for_bit(track: tuple[np.ndarr
 
 
 def test_the_steps_run_where_the_kernel_cannot_or_may_not(tuner: Tuner, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(jit, "ENABLED", True)  # the kernels, whatever $BBOXTUNE_JIT says
     xywh = np.array([[100.0, 80.0, 30.0, 60.0]] * 10) + np.arange(10)[:, None]
     want = tuner._observe_steps(xywh, 0.04)
     calls: list[int] = []
