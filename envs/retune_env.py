@@ -179,6 +179,9 @@ class FilterRetuneEnv(TrackEnv):
         if config.reward_baseline != "rule":
             raise ValueError(f"reward_baseline={config.reward_baseline!r} with FilterRetune-v0; allowed: 'rule' "
                              "(a window's reward is measured against the rule; 'raw' is a FilterTune-v0 option)")
+        if config.features != "base":
+            raise ValueError(f"features={config.features!r} with FilterRetune-v0; allowed: 'base' (the feature set "
+                             "'msd' is a FilterTune-v0 option)")
         n_obs = len(retune_observation_names(config))  # the Observation Space table's entries
         super().__init__(n_obs - len(FEATURE_NAMES), render_mode=render_mode, **kwargs)
         W = self.config.window
@@ -225,10 +228,12 @@ class FilterRetuneEnv(TrackEnv):
         self._start = end
         return est
 
-    def _features(self, lo: int, hi: int) -> np.ndarray:
-        """``FEATURE_NAMES`` of the measurements [lo, hi) (pilot residual: the rule's estimates on them)."""
+    def _features(self, lo: int, hi: int, msd: bool = False) -> np.ndarray:
+        """``FEATURE_NAMES`` of the measurements [lo, hi) (pilot residual: the rule's estimates on them; ``msd``:
+        :func:`measurement_features`'s)."""
         ep = cast(Episode, self.episode)
-        return measurement_features(ep.y[lo:hi], ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, self._rule_est[lo:hi])
+        return measurement_features(ep.y[lo:hi], ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, self._rule_est[lo:hi],
+                                    msd=msd)
 
     def _observe(self) -> np.ndarray:
         ep, start = cast(Episode, self.episode), self._start
@@ -271,13 +276,14 @@ class FilterRetuneEnv(TrackEnv):
         est, _ = self._run_window(params, self._broadcast_carry(len(params["horizon"])), end)
         return self._score_window(est, params, self._start, end)
 
-    def features_so_far(self) -> np.ndarray:
-        """The FilterTune-v0 observation (``bboxtune.envs.episodes.features.FEATURE_NAMES``) of every frame filtered so far,
-        [0, ``window_start``): the whole track's features as a one-shot tuner would see them if the track ended here
-        (measurement-only; the pilot residual against the rule's estimates on those frames)."""
+    def features_so_far(self, msd: bool = False) -> np.ndarray:
+        """The FilterTune-v0 observation (``bboxtune.envs.episodes.features.FEATURE_NAMES``; ``msd=True``: and the
+        "msd" feature set's last entry) of every frame filtered so far, [0, ``window_start``): the whole track's
+        features as a one-shot tuner would see them if the track ended here (measurement-only; the pilot residual
+        against the rule's estimates on those frames)."""
         if self.episode is None:
             raise RuntimeError("no episode: call reset()")
-        return self._features(0, self._start)
+        return self._features(0, self._start, msd)
 
     @property
     def observation_names(self) -> tuple[str, ...]:

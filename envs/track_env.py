@@ -19,7 +19,7 @@ import numpy as np
 from bboxtune.envs.episodes.actions import ACCEPTS, K_AXIS, ActionMap
 from bboxtune.envs.episodes.config import EnvConfig
 from bboxtune.envs.episodes.episode import Episode
-from bboxtune.envs.episodes.features import FEATURE_NAMES
+from bboxtune.envs.episodes.features import feature_names
 from bboxtune.envs.episodes.sources import make_source
 from bboxtune.envs.render import draw_episode
 
@@ -79,7 +79,8 @@ class TrackEnv(gym.Env):
         self.action_map = ActionMap(tune=cast("tuple[str, ...]", self.config.tune), K=K_AXIS,
                                     horizon_max=self.config.horizon_max, sigma_decades=self.config.sigma_decades)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.action_map.dim,), np.float32)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(FEATURE_NAMES) + n_extra_obs,), np.float32)
+        n_obs = len(feature_names(self.config.features)) + n_extra_obs
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (n_obs,), np.float32)
         self.episode: Episode | None = None
 
     @contextmanager

@@ -59,6 +59,7 @@ from bboxtune.envs import RETUNE_ID, TUNE_ID
 
 if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
     from bboxtune.envs.retune_env import FilterRetuneEnv
+    from bboxtune.envs.tune_env import FilterTuneEnv
 from bboxtune.envs.data.atomic_files import write_text_atomic
 from bboxtune.envs.episodes.config import EnvConfig
 
@@ -116,8 +117,9 @@ def load_oneshot(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> OneSho
     cfg = load_config(args.oneshot_model)
     if cfg["env_id"] != ONE_STEP_ENV:
         raise RunError(f"--oneshot-model {args.oneshot_model}: trained on {cfg['env_id']}, not {ONE_STEP_ENV}")
-    try:
-        tune_env = make_env(ONE_STEP_ENV, env_kwargs, split=args.split)
+    try:  # the evaluation's arguments with the run's own feature set (what its model observes)
+        tune_kwargs = {**env_kwargs, "features": EnvConfig.from_kwargs(**cfg["env_kwargs"]).features}
+        tune_env = make_env(ONE_STEP_ENV, tune_kwargs, split=args.split)
     except ENV_ERRORS as err:
         raise RunError(f"--oneshot-model: env {ONE_STEP_ENV} {env_kwargs} cannot be built "
                        f"({' '.join(str(err).split())})") from None
@@ -137,7 +139,8 @@ class Anchors:
 
     @classmethod
     def build(cls, oneshot: OneShotLearned, env_kwargs: dict[str, Any], n_val: int) -> Anchors:
-        by_split = {split: OneShotLearned(oneshot.policy, make_env(ONE_STEP_ENV, env_kwargs, split=split))
+        tune_kwargs = {**env_kwargs, "features": cast("FilterTuneEnv", oneshot.tune_env.unwrapped).config.features}
+        by_split = {split: OneShotLearned(oneshot.policy, make_env(ONE_STEP_ENV, tune_kwargs, split=split))
                     for split in ("train", "val")}
         val_env = make_env(RETUNE_ENV, env_kwargs, split="val")
         return cls({**by_split, "test": oneshot}, val_env, val_episodes(val_env, n_val))

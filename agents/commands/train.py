@@ -1,6 +1,6 @@
 """Train a filter tuner (stable-baselines3) on a bboxtune env and write a run directory.
 
-    python scripts/train.py                      # PPO, bboxtune/FilterTune-v0, sim source, ufir_cmn back end
+    python scripts/train.py                      # PPO, bboxtune/FilterTune-v0, sim source, ufir_cmn back end, msd features
     python scripts/train.py --backend kf_cmn --seed 1
     python scripts/train.py --resume runs/ppo_ufir_cmn_sim_s0   # continue a killed run
     python scripts/train.py --resume runs/ppo_ufir_cmn_sim_s0 --timesteps 200000   # train it on to 200k in all
@@ -8,9 +8,11 @@
 Episodes: training draws the train split; every --eval-freq timesteps (at the first step reaching each multiple of
 it, also after a resume) the policy is scored on the val split (``bboxtune.agents.splits``: disjoint noise-seed
 sets; OTB sources also use the env's sequence splits). Observations are normalised by
-VecNormalize (obs only; the rewards, e.g. log(RMSE_rule/RMSE), are already scale-free). The run directory layout is in
-``bboxtune.agents.training.runs``. Same seed → same result on the same machine (uninterrupted runs); a resumed run continues from
-its last checkpoint with reseeded envs (seed + timesteps done), so it does not replay earlier episodes.
+VecNormalize (obs only; the rewards, e.g. log(RMSE_rule/RMSE), are already scale-free). FilterTune-v0 runs observe the
+"msd" feature set by default (--features; the env's own default is "base": a run's config.yml records which). The run
+directory layout is in ``bboxtune.agents.training.runs``. Same seed → same result on the same machine (uninterrupted
+runs); a resumed run continues from its last checkpoint with reseeded envs (seed + timesteps done), so it does not
+replay earlier episodes.
 
 Before anything is written or a worker process starts, the whole configuration is checked in this process: the
 hyperparameters, one env of the train and the val split (built and reset), and the model built on the training
@@ -102,7 +104,7 @@ from bboxtune.agents.training.safe_load import load_model, stamp
 from bboxtune.envs.data.atomic_files import atomic_write, write_text_atomic
 from bboxtune.envs.data.otb import TRACKER_SPLIT
 from bboxtune.envs.episodes.actions import BACKENDS
-from bboxtune.envs.episodes.config import SOURCES, EnvConfig
+from bboxtune.envs.episodes.config import FEATURE_SETS, SOURCES, EnvConfig
 from bboxtune.envs.episodes.scoring import reward_label
 
 if TYPE_CHECKING:
@@ -119,6 +121,9 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--backend", default="ufir_cmn", choices=BACKENDS, help="filter back end the tuner sets")
     p.add_argument("--source", default="sim", choices=SOURCES, help="episode source (video: set --env-kwargs detector:NAME)")
     p.add_argument("--reward", default="rmse", choices=("rmse", "iou_precision", "success_auc"), help="env reward")
+    p.add_argument("--features", default=None, choices=FEATURE_SETS,
+                   help="observation feature set (EnvConfig.features): 'msd' adds the centre's mean squared displacement "
+                        "over 64 frames to the 20 base features (default: msd for FilterTune-v0, base for other envs)")
     p.add_argument("--timesteps", type=positive_int, default=None,
                    help="total env steps of the run (one step = one episode for FilterTune-v0); default: n_timesteps "
                         "of agents/hyperparams/<algo>.yml; with --resume: the total to reach (>= the steps done), "
@@ -160,9 +165,11 @@ def parse_args(argv: list[str] | None = None, parser: ArgumentParser | None = No
     args = p.parse_args(tokens)
     args.hyperparams = _key_values(p, "--hyperparams", args.hyperparams)
     args.env_kwargs = _key_values(p, "--env-kwargs", args.env_kwargs)
-    clash = sorted(set(args.env_kwargs) & {"backend", "source", "reward", "split"})
+    clash = sorted(set(args.env_kwargs) & {"backend", "source", "reward", "features", "split"})
     if clash:
-        p.error(f"--env-kwargs {clash}: use --backend/--source/--reward (the split is set per use)")
+        p.error(f"--env-kwargs {clash}: use --backend/--source/--reward/--features (the split is set per use)")
+    if args.features is None:
+        args.features = "msd" if args.env == DEFAULT_ENV else "base"
     if args.trackers is not None and "trackers" in args.env_kwargs:
         p.error("--trackers: given twice (also in --env-kwargs trackers=...)")
     if args.trackers is not None:
@@ -207,7 +214,8 @@ def new_config(args: argparse.Namespace) -> dict[str, Any]:
         raise RunError(f"{' / '.join(given)}: {err}" if given else str(err)) from None
     return {
         "algo": args.algo, "env_id": args.env, "seed": args.seed,
-        "env_kwargs": {"backend": args.backend, "source": args.source, "reward": args.reward, **args.env_kwargs},
+        "env_kwargs": {"backend": args.backend, "source": args.source, "reward": args.reward, "features": args.features,
+                       **args.env_kwargs},
         "total_timesteps": args.timesteps or hp.n_timesteps,
         "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes, "checkpoint_freq": args.checkpoint_freq,
         "tensorboard": args.tensorboard, "hyperparams": hp.raw,

@@ -52,6 +52,7 @@ from bboxtune.envs.episodes.scoring import score_estimates
 if TYPE_CHECKING:  # env.unwrapped's type (gymnasium types it as a plain Env)
     from bboxtune.envs.episodes.episode import Episode
     from bboxtune.envs.retune_env import FilterRetuneEnv
+    from bboxtune.envs.tune_env import FilterTuneEnv
 
 ONESHOT_ORACLE, WINDOW_ORACLE, ONESHOT_LEARNED = "oneshot_oracle", "window_oracle", "oneshot_learned"
 ONESHOT_LEARNED_ONLINE = "oneshot_learned_online"
@@ -134,7 +135,7 @@ class OneShotLearned(OneShot):
     def choose(self, obs: np.ndarray, env: gym.Env) -> np.ndarray:
         base = cast("FilterRetuneEnv", env.unwrapped)
         if self.online:  # the FilterTune-v0 features of the frames seen so far; no whole-track episode needed
-            tune_obs = base.features_so_far()
+            tune_obs = base.features_so_far(msd=cast("FilterTuneEnv", self.tune_env.unwrapped).config.features == "msd")
         else:
             ep = cast("Episode", base.episode)  # set by the env's reset
             options = {k: ep.meta[k] for k in ("noise_seed", "sequence", "tracker") if ep.meta.get(k) not in (None, "")}

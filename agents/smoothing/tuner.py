@@ -260,9 +260,10 @@ class Tuner:
     def _compiled_rule(self) -> tuple[float, float, np.ndarray] | None:
         """For a ``bytetrack_kf`` tuner whose rule scales with the box (:func:`rule_nominal`'s OTB / MOT branch):
         the rule's relative σ_v, σ_w and its filter's five noise weights (5, 1), the arguments of
-        :func:`bboxtune.agents.smoothing.observe_kernels.box_observation`; None for every other tuner."""
+        :func:`bboxtune.agents.smoothing.observe_kernels.box_observation`; None for every other tuner (and for one
+        trained on the ``"msd"`` feature set, which that kernel does not compute)."""
         cfg = self.config
-        if self.backend != "bytetrack_kf" or cfg.source in ("sim", "video"):
+        if self.backend != "bytetrack_kf" or cfg.source in ("sim", "video") or cfg.features != "base":
             return None
         nominal = Nominal(sigma_w=1.0, sigma_v=1.0, psi=cfg.nominal_psi, horizon=K_AXIS)  # the weights only
         weights = filters.filter_class(self.backend).DEFAULTS | {k: getattr(nominal, k) for k in ACCEPTS[self.backend]}
@@ -275,7 +276,7 @@ class Tuner:
         nominal = rule_nominal(self.config, y, tau)
         track = Episode(truth=np.full_like(y, np.nan), y=y, tau=tau, nominal=nominal)  # no ground truth: none is used
         rule = run_track(self.backend, y, tau, TrackEnv.rule_params(track))
-        obs = measurement_features(y, tau, nominal.sigma_v, nominal.sigma_w, rule)
+        obs = measurement_features(y, tau, nominal.sigma_v, nominal.sigma_w, rule, msd=self.config.features == "msd")
         return Observation(obs=obs, nominal=nominal, y=y, tau=tau)
 
     def action(self, seen: Observation) -> np.ndarray:

@@ -52,13 +52,14 @@ class EpisodeTuner:
     policy: ObsPolicy
     backend: str
     actions: ActionMap
+    msd: bool = False  # the observation has the "msd" feature set's extra entry (EnvConfig.features)
 
     def act(self, ep: Episode) -> np.ndarray:
         """Action (d,) in [-1, 1] for episode ``ep`` (a fixed action needs no observation: no filter run)."""
         if isinstance(self.policy, GlobalPolicy):
             return self.policy.action
         rule = run_positions(self.backend, ep.y, ep.tau, ep.nominal.as_params())[0]
-        obs = measurement_features(ep.y, ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, rule)
+        obs = measurement_features(ep.y, ep.tau, ep.nominal.sigma_v, ep.nominal.sigma_w, rule, msd=self.msd)
         return self.actions.check(self.policy.predict(obs[None]))[0]
 
     def params(self, ep: Episode) -> dict[str, np.ndarray]:
@@ -111,7 +112,7 @@ def load_tuner(path: str | os.PathLike, *, trust_pickle: bool = False) -> Episod
         except (TypeError, ValueError) as err:
             raise ValueError(f"{path / 'config.yml'}: env_kwargs: {err}") from None
         amap = action_map(cfg.backend, cfg.tune, cfg.horizon_max, cfg.sigma_decades)
-        return EpisodeTuner(SB3Policy.load(path, trust_pickle=trust_pickle), cfg.backend, amap)
+        return EpisodeTuner(SB3Policy.load(path, trust_pickle=trust_pickle), cfg.backend, amap, cfg.features == "msd")
     file = path / "tuned.json" if path.is_dir() else path
     if not file.is_file():
         raise ValueError(f"--tuned {path}: neither a train.py run directory (config.yml) nor a tuned.json file")

@@ -47,7 +47,7 @@ from bboxtune.agents.training.run_files import RunError, load_normalizer
 from bboxtune.agents.training.safe_load import load_model
 from bboxtune.envs import RETUNE_ID
 from bboxtune.envs.episodes.config import EnvConfig
-from bboxtune.envs.episodes.features import FEATURE_NAMES
+from bboxtune.envs.episodes.features import FEATURE_NAMES, feature_names
 from bboxtune.envs.retune_env import retune_observation_names
 from bboxtune.envs.vector import BATCHED_IDS, TuneBatch
 
@@ -229,9 +229,11 @@ def constant_features(normalizer: VecNormalize) -> np.ndarray:
 
 
 def observation_names(env_id: str, env_kwargs: dict[str, Any]) -> tuple[str, ...]:
-    """The names of the observation entries of ``env_id`` built with ``env_kwargs`` (FilterTune-v0:
-    ``FEATURE_NAMES``; FilterRetune-v0: :func:`bboxtune.envs.retune_env.retune_observation_names`)."""
-    return retune_observation_names(EnvConfig.from_kwargs(**env_kwargs)) if env_id == RETUNE_ID else FEATURE_NAMES
+    """The names of the observation entries of ``env_id`` built with ``env_kwargs`` (FilterTune-v0: those of its
+    feature set, :func:`bboxtune.envs.episodes.features.feature_names`; FilterRetune-v0:
+    :func:`bboxtune.envs.retune_env.retune_observation_names`)."""
+    cfg = EnvConfig.from_kwargs(**env_kwargs)
+    return retune_observation_names(cfg) if env_id == RETUNE_ID else feature_names(cfg.features)
 
 
 def describe_held_features(normalizers: dict[str, VecNormalize | None],

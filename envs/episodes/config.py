@@ -27,6 +27,7 @@ MIX_SOURCES = ("sim", "otb", "otb_tracker", "mot")
 SPLITS = ("train", "val", "test")
 SCENARIOS = ("stationary", "nonstationary")  # sim: one regime per track, or regimes switching within it
 REWARDS = ("rmse", "iou_precision", "success_auc")
+FEATURE_SETS = ("base", "msd")  # EnvConfig.features
 # Longest track (frames). Simulated box sizes are reflected at ``box_size_bounds`` (bboxtune.envs.data.simulate), so they
 # stay plausible at any length; the bound keeps a track's memory and filter time moderate (a 100,000-frame
 # episode: 3.2 MB per (T, 4) array; reset + step ~0.8 s with ufir_cmn, ~2 s with kf_cmn or ukf on a 2-core
@@ -134,6 +135,9 @@ class EnvConfig:
     # FilterTune-v0: what the reward is measured against, "rule" | "raw" (the unfiltered measurements: the same best
     # action per episode, a lower-variance signal where the filter should stay near the measurements)
     reward_baseline: str = "rule"
+    # FilterTune-v0's observation: "base" (the 20 bboxtune.envs.episodes.features.FEATURE_NAMES) | "msd" (those and
+    # MSD_FEATURE, the log mean squared displacement of the centre over MSD_LAG frames: bboxtune.envs.episodes.features)
+    features: str = "base"
     tune: tuple[str, ...] | None = None  # parameters the agent sets; None -> bboxtune.envs.episodes.actions.DEFAULT_TUNE[backend]
     track_length: int = 500  # frames per simulated track / video, integer in [8, TRACK_LENGTH_MAX]
     # sim scenario distribution ((low, high); log-uniform for σ, uniform otherwise)
@@ -216,6 +220,7 @@ class EnvConfig:
         put("backend", check_choice("backend", self.backend, BACKENDS))
         put("reward", check_choice("reward", self.reward, REWARDS))
         put("reward_baseline", check_choice("reward_baseline", self.reward_baseline, ("rule", "raw")))
+        put("features", check_choice("features", self.features, FEATURE_SETS))
         put("split", check_choice("split", self.split, SPLITS))
         put("motion", check_choice("motion", self.motion, ("cv", "otb")))
         put("scenario", check_choice("scenario", self.scenario, SCENARIOS))

@@ -257,3 +257,22 @@ def track_observations(y: np.ndarray, rule: np.ndarray, tau: np.ndarray, nominal
     strided = np.ascontiguousarray(stats[:, STRIDED:STRIDED + len(STRIDES)])
     sigma_v, sigma_w = sigmas(c0, c1, strided, tau, np.ascontiguousarray(stats[:, SCALE]), T)
     return observation(stats, tau, sigma_v, sigma_w, nominal_v, nominal_w, T, sigma_range, tau_range)
+
+
+@jit.kernel
+def position_msd(y: np.ndarray, lag: int) -> np.ndarray:
+    """Mean of (p_{t+lag} − p_t)² over the frame pairs and centre coordinates (cx, cy) of ``y`` (B, T, 4) where the
+    difference is finite, per track (B,); NaN with fewer than 4 such pairs. The sums run in time order (numpy's
+    reference, ``features.position_msd_numpy``, sums pairwise: equal to rounding)."""
+    B, T = y.shape[0], y.shape[1]
+    out = np.empty(B)
+    for b in range(B):
+        total, n = 0.0, 0
+        for t in range(T - lag):
+            for j in range(2):
+                d = y[b, t + lag, j] - y[b, t, j]
+                if math.isfinite(d):
+                    total += d * d
+                    n += 1
+        out[b] = total / n if n >= 4 else math.nan
+    return out

@@ -139,3 +139,64 @@ def test_the_one_call_observation_is_the_three_kernels_bit_for_bit(y: np.ndarray
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(features.measurement_features(y[0], tau, nominal, 3 * nominal, rule[0]),
                                   want[0].astype(np.float32))
+
+
+@settings(max_examples=60, deadline=None)
+@given(tracks(min_frames=2))
+def test_position_msd_equals_numpy(y: np.ndarray) -> None:
+    """The mean squared displacement to 1e-9 relative (NaN where fewer than 4 pairs are measured, in both); inf values
+    count as missing in both."""
+    y = y.copy()
+    y[0, 0, 0] = np.inf if y.shape[1] > 2 else y[0, 0, 0]
+    got = features_kernels.position_msd(np.ascontiguousarray(y), features.msd_lag(y.shape[1]))
+    want = features.position_msd_numpy(y)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got, want, rtol=1e-9)
+    kernel, reference = both(lambda: features.msd_feature(y, np.log(features.box_scale(y))))
+    assert np.isfinite(kernel).all()
+    np.testing.assert_allclose(kernel, reference, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize(("n_frames", "lag"), [(2, 1), (3, 1), (100, 50), (128, 64), (5000, 64)])
+def test_msd_lag_is_at_most_half_the_track(n_frames: int, lag: int) -> None:
+    assert features.msd_lag(n_frames) == lag
+
+
+def test_msd_feature_tells_slow_coloured_noise_from_motion() -> None:
+    """Two tracks with the same short-lag noise level: CMN with ψ = 0.9 around a box at rest (bounded MSD, 2σ²/(1 − ψ²)
+    per coordinate at long lags) and a box moving at 1 px/frame with white noise (MSD ≈ 64² px²): the feature is
+    what the formula gives, and the moving track's is the larger by ~log(64² / 2σ_v²)."""
+    rng = np.random.default_rng(0)
+    T, scale = 2000, 50.0
+    xi = rng.normal(0, 1.0, (T, 2))
+    cmn = np.zeros((T, 2))
+    for t in range(1, T):
+        cmn[t] = 0.9 * cmn[t - 1] + xi[t]
+    box = np.array([320.0, 240.0, scale, scale])
+    resting = np.tile(box, (T, 1))
+    resting[:, :2] += cmn
+    moving = np.tile(box, (T, 1)) + rng.normal(0, 1.0, (T, 4)) * [1, 1, 0, 0]
+    moving[:, 0] += np.arange(T)
+    y = np.stack([resting, moving])
+    got = features.msd_feature(y, np.log(features.box_scale(y)))
+    stationary = 2 * 1.0 / (1 - 0.9**2)  # E[(v_{t+k} − v_t)²] per coordinate for k ≫ 1/(1 − ψ), averaged over cx, cy
+    assert got[0] == pytest.approx(np.log(stationary / scale**2), abs=0.15)
+    assert got[1] == pytest.approx(np.log((64.0**2 / 2 + 2.0) / scale**2), abs=0.05)
+
+
+def test_measurement_features_with_msd_append_one_entry() -> None:
+    """``msd=True``: the 20 base entries unchanged and the feature last, for a batch and for one track alike; a track
+    with fewer than 4 measured pairs gets the floor."""
+    rng = np.random.default_rng(3)
+    y = np.cumsum(rng.normal(0, 2, (3, 300, 4)), axis=1) + [320.0, 240.0, 60.0, 40.0]
+    y[1, 50:120] = np.nan
+    rule = y + rng.normal(0, 1, y.shape)
+    base = features.measurement_features(y, 0.05, 3.0, 10.0, rule)
+    with_msd = features.measurement_features(y, 0.05, 3.0, 10.0, rule, msd=True)
+    assert with_msd.shape == (3, 21) and with_msd.dtype == np.float32
+    np.testing.assert_array_equal(with_msd[:, :20], base)
+    np.testing.assert_array_equal(features.measurement_features(y[1], 0.05, 3.0, 10.0, rule[1], msd=True), with_msd[1])
+    assert features.feature_names("msd")[-1] == features.MSD_FEATURE and len(features.feature_names("msd")) == 21
+    sparse = np.full((1, 300, 4), np.nan)
+    sparse[0, [0, 64, 128]] = [320.0, 240.0, 60.0, 40.0]  # two pairs 64 frames apart
+    assert features.measurement_features(sparse, 0.05, 3.0, 10.0, sparse, msd=True)[0, -1] == np.float32(np.log(1e-12))

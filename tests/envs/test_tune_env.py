@@ -187,6 +187,42 @@ def test_a_raw_reward_baseline_is_refused_by_the_retune_env_and_others_everywher
         gym.make("bboxtune/FilterTune-v0", reward_baseline="truth")
 
 
+@pytest.mark.parametrize("source", ["sim", pytest.param("otb_tracker", marks=needs_otb)])
+def test_the_msd_feature_set_appends_one_entry_and_changes_nothing_else(source: str) -> None:
+    """``features="msd"``: the 21st entry is ``msd_feature`` of the episode's measurements; the 20 before it, the
+    episode and the reward are those of the base env (a block's episode and a pinned one); the batched env's rows
+    are the single env's; gym's and SB3's checkers pass."""
+    from bboxtune.envs.episodes.features import box_scale, msd_feature
+    base, msd = (_make("bboxtune/FilterTune-v0", "ufir_cmn", source, **kw) for kw in ({}, {"features": "msd"}))
+    assert msd.observation_space.shape == (21,) and base.observation_space.shape == (20,)
+    action = np.array([0.3, -0.2], np.float32)
+    for options in ({}, {"noise_seed": 7}):
+        obs_b, _ = base.reset(seed=3, options=options)
+        obs_m, _ = msd.reset(seed=3, options=options)
+        np.testing.assert_array_equal(obs_m[:20], obs_b)
+        y = msd.unwrapped.episode.y[None]
+        assert obs_m[20] == pytest.approx(msd_feature(y, np.log(box_scale(y)))[0], rel=1e-6)
+        assert base.step(action)[1] == msd.step(action)[1]
+    gym_check_env(msd.unwrapped, skip_render_check=True)
+    sb3_check_env(msd.unwrapped, warn=True)
+    venv = envs.make_vec("bboxtune/FilterTune-v0", 3, backend="ufir_cmn", source=source, features="msd",
+                         **({"otb_root": OTB_ROOT} if source != "sim" else SHORT))
+    obs, infos = venv.reset(seed=0)
+    assert obs.shape == (3, 21)
+    track = infos["track"]
+    pinned, _ = msd.reset(options={"noise_seed": int(track["noise_seed"][1]),
+                                   **({"sequence": track["sequence"][1]} if source != "sim" else {})})
+    np.testing.assert_allclose(obs[1], pinned, rtol=1e-6)
+
+
+@pytest.mark.parametrize(("value", "error"), [("extended", ValueError), (1, TypeError), (None, TypeError)])
+def test_an_unknown_feature_set_is_refused_and_the_retune_env_refuses_msd(value: object, error: type[Exception]) -> None:
+    with pytest.raises(error, match="features"):
+        gym.make("bboxtune/FilterTune-v0", features=value)
+    with pytest.raises(ValueError, match="features='msd' with FilterRetune-v0; allowed: 'base'"):
+        gym.make("bboxtune/FilterRetune-v0", features="msd")
+
+
 def test_observation_uses_measurements_only() -> None:
     env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
     obs, _ = env.reset(seed=5)

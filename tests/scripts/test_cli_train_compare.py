@@ -93,7 +93,8 @@ def run_paths(misuse_paths: MisusePaths, tiny_run: Path) -> MisusePaths:
     shutil.copytree(tiny_run, root / "run")
     config = yaml.safe_load((tiny_run / "config.yml").read_text())
     for name, text in (("bad_config", "algo: ppo\nenv_id: x: y\nseed: 0\n"), ("no_model", yaml.safe_dump(config)),
-                       ("retune", yaml.safe_dump({**config, "env_id": "bboxtune/FilterRetune-v0"}))):
+                       ("retune", yaml.safe_dump({**config, "env_id": "bboxtune/FilterRetune-v0",  # as a retune run
+                                                  "env_kwargs": {**config["env_kwargs"], "features": "base"}}))):
         (root / name).mkdir()
         (root / name / "config.yml").write_text(text)
     shutil.copytree(tiny_run, root / "kf_config")  # its config.yml edited to another back end of the same action size

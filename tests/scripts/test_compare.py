@@ -190,5 +190,5 @@ def test_gate_uses_the_model_or_leaves_the_measurements_alone(tiny_run: Path, tm
     summary = (out / "summary.md").read_text()
     assert "- gate (--gate): the run's own env" in summary and "24 train-split episodes" in summary
     assert "5 val-split episodes; ppo_gated margin" in summary and "## Paired: ppo_gated against each method" in summary
-    margin = read_gate(out / "gates" / "ppo_gated.json", 20).margin  # the fitted gate, for smooth.py --gate
+    margin = read_gate(out / "gates" / "ppo_gated.json", 21).margin  # the fitted gate (msd features), for smooth.py --gate
     assert f"ppo_gated margin {margin:+.3g} (" in summary

@@ -235,6 +235,29 @@ def test_tracker_set_of_a_new_run(train: ModuleType, argv: list[str], expected) 
     assert args.env_kwargs.get("trackers") == want
 
 
+@pytest.mark.parametrize("argv, expected", [
+    ([], "msd"),  # FilterTune-v0 trains on the msd feature set by default
+    (["--features", "base"], "base"),
+    (["--env", "bboxtune/FilterRetune-v0"], "base"),
+    (["--env", "bboxtune/FilterRetune-v0", "--features", "msd"], "msd"),  # refused later, by the env's own check
+])
+def test_feature_set_of_a_new_run(train: ModuleType, argv: list[str], expected: str) -> None:
+    args = train.parse_args([*argv, "--out", "x"])
+    assert args.features == expected and train.new_config(args)["env_kwargs"]["features"] == expected
+
+
+def test_the_feature_set_is_a_flag_and_the_retune_env_refuses_msd(train: ModuleType, tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture) -> None:
+    err = error_line(lambda: train.main(["--env-kwargs", "features=base", "--out", str(tmp_path / "a")]), capsys)
+    assert "--env-kwargs ['features']: use --backend/--source/--reward/--features" in err
+    err = error_line(lambda: train.main(["--features", "all", "--out", str(tmp_path / "b")]), capsys)
+    assert "--features: invalid choice: 'all'" in err
+    err = error_line(lambda: train.main(["--env", "bboxtune/FilterRetune-v0", "--features", "msd", "--timesteps", "8",
+                                         "--out", str(tmp_path / "c")]), capsys)
+    assert "features='msd' with FilterRetune-v0; allowed: 'base'" in err
+    assert not (tmp_path / "c").exists()
+
+
 def test_a_run_leaves_nothing_in_the_temp_directory(train: ModuleType, tmp_path: Path,
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """SB3's default logger makes an empty ``SB3-<date>`` folder in the temp directory for every learn() call (torch

@@ -56,6 +56,21 @@ def test_sim_episode_observation_params_and_estimate_are_the_envs(name):
         np.testing.assert_allclose(tuner.smooth(boxes, ep.tau, params), cxcywh_to_xywh(estimate), rtol=1e-9, atol=1e-7)
 
 
+def test_a_tuner_of_the_msd_feature_set_observes_what_its_env_does():
+    """A run trained with ``features="msd"`` sees the 21-entry observation of its env (the observation alone: the
+    pretrained policy here has 20 inputs); a bytetrack_kf tuner of that set skips the compiled 20-entry kernel."""
+    env = gym.make(ENV_ID, backend="ufir_cmn", features="msd", track_length=120).unwrapped
+    tuner = dataclasses.replace(load_pretrained("sim_ufir_cmn"), config=env.config)
+    obs, _ = env.reset(options={"noise_seed": 5})
+    seen = tuner.observe(cxcywh_to_xywh(env.episode.y), env.episode.tau)
+    assert seen.obs.shape == (21,)
+    np.testing.assert_allclose(seen.obs, obs, rtol=1e-5, atol=1e-6)  # xywh round trip: last-bit differences
+    box_tuner = load_pretrained("mot15_det")
+    assert box_tuner._compiled_rule is not None
+    msd_tuner = dataclasses.replace(box_tuner, config=dataclasses.replace(box_tuner.config, features="msd"))
+    assert msd_tuner._compiled_rule is None and msd_tuner.observe(_track(), 1 / 30).obs.shape == (21,)
+
+
 @pytest.mark.skipif(not os.environ.get("OTB_ROOT"), reason="needs the OTB data (set OTB_ROOT)")
 def test_otb_tracker_episode_from_the_result_file_is_the_envs_bit_for_bit():
     env = gym.make(ENV_ID, backend="ufir_cmn", source="otb_tracker", tracker="STRUCK", split="test").unwrapped

@@ -55,6 +55,8 @@ def test_policy_tuner_feeds_env_features_to_the_policy(episodes):
             Zero.seen = obs
             return np.zeros((len(obs), 2))
 
+    EpisodeTuner(Zero(), "kf", action_map("kf"), msd=True).params(episodes[0])  # a run of the "msd" feature set
+    assert Zero.seen.shape == (1, 21) and np.all(np.isfinite(Zero.seen))
     tuner = EpisodeTuner(Zero(), "kf", action_map("kf"))
     params = tuner.params(episodes[0])
     assert Zero.seen.shape == (1, 20) and np.all(np.isfinite(Zero.seen))
