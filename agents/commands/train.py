@@ -121,9 +121,8 @@ def build_parser() -> ArgumentParser:
     p.add_argument("--backend", default="ufir_cmn", choices=BACKENDS, help="filter back end the tuner sets")
     p.add_argument("--source", default="sim", choices=SOURCES, help="episode source (video: set --env-kwargs detector:NAME)")
     p.add_argument("--reward", default="rmse", choices=("rmse", "iou_precision", "success_auc"), help="env reward")
-    p.add_argument("--features", default=None, choices=FEATURE_SETS,
-                   help="observation feature set (EnvConfig.features): 'msd' adds the centre's mean squared displacement "
-                        "over 64 frames to the 20 base features (default: msd for FilterTune-v0, base for other envs)")
+    p.add_argument("--features", default=None, choices=FEATURE_SETS, help="observation feature set (EnvConfig.features; msd: "
+                   "base + the centre's 64-frame mean squared displacement); default: msd for FilterTune-v0, else base")
     p.add_argument("--timesteps", type=positive_int, default=None,
                    help="total env steps of the run (one step = one episode for FilterTune-v0); default: n_timesteps "
                         "of agents/hyperparams/<algo>.yml; with --resume: the total to reach (>= the steps done), "
