@@ -28,13 +28,16 @@ def run_dir(backend: str) -> Path:
     return ROOT / "docs" / "results" / backend / "run"
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_committed_run_loads_without_pickles(backend: str) -> None:
-    run = run_dir(backend)
+@pytest.mark.parametrize(("folder", "features"), [*((b, "base") for b in BACKENDS), *((f"msd_{b}", "msd") for b in BACKENDS)])
+def test_committed_run_loads_without_pickles(folder: str, features: str) -> None:
+    """The base-feature runs of the first table and seed 0 of the msd feature set's runs (docs/results/msd_<backend>)."""
+    run = run_dir(folder)
     assert not list(run.glob("*.pkl")), "a published run must not need a pickle"
     cfg = load_config(run)
-    assert cfg["env_kwargs"]["backend"] == backend
+    assert cfg["env_kwargs"]["backend"] == folder.removeprefix("msd_")
+    assert cfg["env_kwargs"].get("features", "base") == features
     env = make_env(cfg["env_id"], cfg["env_kwargs"])
+    assert env.observation_space.shape == ((21,) if features == "msd" else (20,))
     obs, _ = env.reset(seed=0)
     for which in ("final", "best"):
         policy = SB3Policy.load(run, which)  # refuses pickles and checks the spaces against config.yml
