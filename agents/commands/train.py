@@ -8,11 +8,10 @@
 Episodes: training draws the train split; every --eval-freq timesteps (at the first step reaching each multiple of
 it, also after a resume) the policy is scored on the val split (``bboxtune.agents.splits``: disjoint noise-seed
 sets; OTB sources also use the env's sequence splits). Observations are normalised by
-VecNormalize (obs only; the rewards, e.g. log(RMSE_rule/RMSE), are already scale-free). FilterTune-v0 runs observe the
-"msd" feature set by default (--features; the env's own default is "base": a run's config.yml records which). The run
-directory layout is in ``bboxtune.agents.training.runs``. Same seed → same result on the same machine (uninterrupted
-runs); a resumed run continues from its last checkpoint with reseeded envs (seed + timesteps done), so it does not
-replay earlier episodes.
+VecNormalize (obs only; the rewards, e.g. log(RMSE_rule/RMSE), are already scale-free); config.yml records the
+--features set. The run directory layout is in ``bboxtune.agents.training.runs``. Same seed → same result on the same machine
+(uninterrupted runs); a resumed run continues from its last checkpoint with reseeded envs (seed + timesteps done), so
+it does not replay earlier episodes.
 
 Before anything is written or a worker process starts, the whole configuration is checked in this process: the
 hyperparameters, one env of the train and the val split (built and reset), and the model built on the training
