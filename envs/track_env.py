@@ -98,10 +98,10 @@ class TrackEnv(gym.Env):
                 rng.bit_generator.state = cast("Mapping[str, Any]", state)  # rng's own, saved above
             raise
 
-    def _noise_seeds(self, count: int) -> list[int]:
-        """The next ``count`` episode noise seeds from ``np_random`` (the same sequence whether drawn one at
-        a time or in blocks)."""
-        return self.np_random.integers(2**62, size=count).tolist()
+    def _noise_seeds(self, count: int, rng: np.random.Generator | None = None) -> list[int]:
+        """The next ``count`` episode noise seeds from ``rng`` (default ``np_random``; the same sequence whether
+        drawn one at a time or in blocks)."""
+        return (self.np_random if rng is None else rng).integers(2**62, size=count).tolist()
 
     def _draw(self, options: dict[str, Any]) -> Episode:
         """The episode checked ``options`` pin (or a fresh one from ``np_random``); a ``tracker`` option only

@@ -6,6 +6,7 @@ from collections import deque
 from typing import Any, cast
 
 import numpy as np
+from gymnasium.utils import seeding
 
 from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.features import measurement_features
@@ -20,6 +21,8 @@ from bboxtune.envs.episodes.scoring import (
     score_tracks,
 )
 from bboxtune.envs.track_env import TrackEnv, check_reset_args
+
+Prepared = tuple[Episode, dict[str, Any], np.ndarray]  # an episode, its fixed-rule run and its observation
 
 
 class FilterTuneEnv(TrackEnv):
@@ -128,12 +131,14 @@ class FilterTuneEnv(TrackEnv):
     options replays it. For speed the ``sim`` source draws and prepares (simulation, rule run, rule
     scores, observation) a block of up to 64 unpinned episodes at once — batched over the block — and hands
     them out one per reset: the episodes, their order and every value are the same as one at a time (the
-    tests check bit-identity with the pinned episode for the FIR family; the Kalman family's batched matrix
-    products round differently in batches of other widths, so its values agree to ~1e-15 relative), but
-    ``np_random`` advances a block at a time.
-    ``reset(seed=...)`` discards the prepared block, draws the next block's noise seeds and prepares only its
-    first episode (the rest at the next reset: an evaluation loop that reseeds every episode pays for one
-    episode, not a block); a pinned episode is prepared alone and leaves the block as it is.
+    tests check bit-identity with the pinned episode for every back end), but ``np_random`` advances a block at
+    a time. ``reset(seed=s)`` discards the prepared block, draws the next block's noise seeds and prepares its
+    first episode (the rest together at the next unseeded reset). When ``s`` is the last reseed's seed + 1 it
+    also reads ahead: the first episodes of seeds s + 1, s + 2, … are prepared with it in one batch, 2, 4, …
+    up to a block of them as the run of consecutive seeds grows, so an evaluation loop ``reset(seed=i)``,
+    i = 0, 1, …, pays for blocks while scattered seeds pay for one episode each. Either way ``reset(seed=s)``
+    gives what it gives on a fresh env, bit for bit (tested). A pinned episode is prepared alone and leaves the
+    block as it is; a pinned reset with a ``seed`` drops the block and restarts the unpinned sequence from it.
 
     ## Episode End
     After one step: ``terminated=True``, ``truncated=False``. ``info`` then holds, for the action and for the rule
@@ -260,48 +265,72 @@ class FilterTuneEnv(TrackEnv):
     * v0, ``features="msd"`` (the default ``"base"`` changes no observation): the centre's mean squared displacement
       over 64 frames as a 21st observation entry (with it PPO closes 91 % of the rule → oracle gap on the default
       scenario instead of 86 %; docs/results-sim.md).
+    * v0, reseeding reads ahead (no change to any episode): consecutive ``reset(seed=i)`` prepare their episodes
+      in blocks (~1.75× → ~1.15× the cost of an unseeded reset in ``scripts/bench_env.py`` [1b]); a pinned
+      reset with a ``seed`` restarts the unpinned sequence from that seed (before, the next unseeded resets went
+      on with the noise seeds of the block an earlier reseed had drawn).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         super().__init__(0, render_mode=render_mode, **kwargs)
         self._rule: dict[str, Any] = {}
-        self._ready: deque[tuple[Episode, dict[str, Any], np.ndarray]] = deque()  # prepared, not yet used
+        self._ready: deque[Prepared] = deque()  # prepared, not yet used
         self._pending: deque[int] = deque()  # noise seeds of the current block drawn but not yet prepared
+        self._ahead: dict[int, Prepared] = {}  # episodes of the seeds after the last reseed's, by noise seed
+        self._last_seed: int | None = None  # the seed of the last unpinned reseeded reset
         self._estimate: np.ndarray | None = None
         self._done = True
 
     # -- episode ---------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
         seed, options = check_reset_args(seed, options)
-        block: list[tuple[Episode, dict[str, Any], np.ndarray]] = []
+        block: list[Prepared] = []
         pending: list[int] = []
+        ahead: dict[int, Prepared] | None = None
         with self._seeded(seed):
             if options:  # a pinned episode: prepared alone, the queue stays as it is
                 prepared = self.prepare([self._draw(options)])[0]
             elif seed is None and self._ready:
                 prepared = self._ready[0]
-            else:  # reseeded (the prepared block is stale) or none left: the next block
-                seeds = self._noise_seeds(self.source.block) if seed is not None or not self._pending else list(self._pending)
-                # after a reseed only the first episode is prepared (a loop that reseeds every episode pays for
-                # one); the block's other noise seeds wait and are prepared together at the next reset
-                ready = 1 if seed is not None else len(seeds)
-                block = self.prepare(self.source.draw_many(seeds[:ready]))
-                pending = seeds[ready:]
+            elif seed is None:  # none left: the next block (its noise seeds drawn at a reseed, or now)
+                block = self.prepare(self.source.draw_many(list(self._pending) or self._noise_seeds(self.source.block)))
+                prepared = block[0]
+            else:  # reseeded: the prepared block is stale; only its first episode is prepared now (and the
+                # episodes of the next seeds, read ahead), the block's other noise seeds wait for the next reset
+                seeds = self._noise_seeds(self.source.block)
+                ahead = self._read_ahead(seed, seeds[0])
+                block, pending = [ahead[seeds[0]]], seeds[1:]
                 prepared = block[0]
         # nothing below can fail: the env changes only once the new episode is ready
         if seed is not None:
             self._ready.clear()
+            self._pending.clear()
         if block:
             self._ready.extend(block[1:])
             self._pending = deque(pending)
         elif not options:
             self._ready.popleft()
+        if ahead is not None:
+            self._ahead, self._last_seed = ahead, seed
         self.episode, self._rule, self._obs = prepared
         self._estimate = None
         self._done = False
         return self._obs.copy(), {"track": dict(self.episode.meta)}
 
-    def prepare(self, episodes: list[Episode]) -> list[tuple[Episode, dict[str, Any], np.ndarray]]:
+    def _read_ahead(self, seed: int, noise_seed: int) -> dict[int, Prepared]:
+        """The episodes prepared for ``reset(seed=seed)``, by noise seed: ``noise_seed``'s (the first of the seed's
+        block) and, when ``seed`` follows the last reseed's, those of the next seeds, 2, 4, … up to
+        ``source.block`` of them in one batch (bit for bit the same: an episode is a function of its noise seed)."""
+        if noise_seed in self._ahead:
+            return self._ahead
+        width = 1
+        if self._last_seed is not None and seed == self._last_seed + 1:
+            width = min(2 * len(self._ahead), self.source.block)
+        noise_seeds = [noise_seed] + [self._noise_seeds(self.source.block, seeding.np_random(seed + j)[0])[0]
+                                      for j in range(1, width)]
+        return dict(zip(noise_seeds, self.prepare(self.source.draw_many(noise_seeds)), strict=True))
+
+    def prepare(self, episodes: list[Episode]) -> list[Prepared]:
         """Each episode with its fixed-rule run (parameters, estimate, scores, and the ``reference`` scores the
         reward is measured against: the rule's or the raw measurements', ``reward_baseline``) and its observation — batched
         over episodes of equal length (the rule's filter runs, its scores and the features)."""
@@ -311,7 +340,7 @@ class FilterTuneEnv(TrackEnv):
         truths = [ep.truth for ep in episodes]
         scores = score_tracks(estimates, truths)
         reference = reference_scores(self.config.reward_baseline, scores, [ep.y for ep in episodes], truths)
-        out: list[tuple[Episode, dict[str, Any], np.ndarray]] = [None] * len(episodes)  # type: ignore[list-item]
+        out: list[Prepared] = [None] * len(episodes)  # type: ignore[list-item]
         scores_of = {k: v.tolist() for k, v in scores.items()}  # Python floats, converted once for all episodes
         reference_of = {k: v.tolist() for k, v in reference.items()}
         lengths: dict[int, list[int]] = {}  # the episodes of each length, in order

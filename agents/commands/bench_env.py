@@ -7,8 +7,9 @@ For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks)
 1. steps/s through the public API: ``env.reset(); env.step(action)`` on ``gym.make``'s wrapped env (one
    step per episode, so every step includes drawing, simulating and summarising a new track and the
    fixed-rule run it is compared with — prepared in blocks, see ``bboxtune.envs.tune_env``) — target >= 1,000 steps/s;
-   and, as a ratio to it, ``env.reset(seed=i); env.step(action)`` (a reseed prepares one episode, not a block; the
-   timed blocks of [1] and [1b] alternate, so a change of load hits both);
+   and, as ratios to it, [1b] ``env.reset(seed=i); env.step(action)`` with i = 0, 1, … (consecutive seeds: the env
+   reads their episodes ahead in blocks) and [1c] the same with scattered seeds (each reseed prepares one episode);
+   the timed blocks of [1], [1b] and [1c] alternate, so a change of load hits all three;
 2. episodes/s through the batched scoring path ``env.unwrapped.score(actions)`` with ``--candidates``
    distinct actions per call (each candidate is one filtered and scored episode) — target >= 5,000;
 3. the cost of a step in runs of the filter alone (one candidate, gains cached), from the same run, as a ratio;
@@ -101,12 +102,21 @@ def main(argv: list[str] | None = None) -> int:
             env.reset(seed=r * args.episodes + i)
             env.step(a)
 
-    (step_rate, step_median), (seeded_rate, seeded_median) = alternating_rates(args.episodes, [steps, seeded_steps],
-                                                                               args.repeat)
+    scattered = np.random.default_rng(args.seed).permutation(10 * args.repeat * args.episodes)[::10].reshape(args.repeat, -1)
+
+    def scattered_steps(r: int) -> None:
+        for s, a in zip(scattered[r].tolist(), actions[r], strict=True):
+            env.reset(seed=s)
+            env.step(a)
+
+    (step_rate, step_median), (seeded_rate, seeded_median), (scattered_rate, scattered_median) = alternating_rates(
+        args.episodes, [steps, seeded_steps, scattered_steps], args.repeat)
     print(f"{args.backend}, {args.track_length}-frame box tracks, sim source; best (median) of {args.repeat} timed blocks")
     print(f"[1] gym.make + reset + step: {step_rate:,.0f} ({step_median:,.0f}) steps/s (target >= 1,000)")
     print(f"[1b] reset(seed=i) + step (a Gymnasium evaluation loop): {seeded_rate:,.0f} ({seeded_median:,.0f}) steps/s, "
           f"{step_rate / seeded_rate:.2f}x the time of reset() + step (target <= 1.5x)")
+    print(f"[1c] reset(seed=s) + step, scattered seeds (each prepared alone): {scattered_rate:,.0f} ({scattered_median:,.0f}) "
+          f"steps/s, {step_rate / scattered_rate:.2f}x the time of reset() + step")
 
     u = cast("FilterTuneEnv", env.unwrapped)  # gymnasium types env.unwrapped as a plain Env
     rng = np.random.default_rng(args.seed)

@@ -9,6 +9,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from bboxtune import envs, filters
+from bboxtune.envs.episodes.actions import BACKENDS
 from bboxtune.envs.episodes.scoring import reward_label
 from tests.envs.conftest import OTB_ROOT, needs_otb
 
@@ -44,7 +45,7 @@ def test_same_seed_same_everything(env_id: str) -> None:
     assert runs[0][2:] == runs[1][2:]
 
 
-@pytest.mark.parametrize("backend", ["ufir_cmn", "kf_cmn", "oufir"])
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_an_episode_prepared_in_a_block_equals_the_same_episode_pinned(backend: str) -> None:
     env = _make("bboxtune/FilterTune-v0", backend, "sim")
     env.reset(seed=11)
@@ -55,13 +56,8 @@ def test_an_episode_prepared_in_a_block_equals_the_same_episode_pinned(backend: 
         _, reward, *_, step_info = env.step(action)
         pinned, _ = env.reset(options={"noise_seed": info["track"]["noise_seed"]})
         _, pinned_reward, *_, pinned_info = env.step(action)
-        if backend == "kf_cmn":  # the Kalman family's BLAS products round differently in batches of other widths
-            np.testing.assert_allclose(obs, pinned, rtol=1e-6)  # float32 features of estimates equal to ~1e-15
-            np.testing.assert_allclose([reward, step_info["rule_rmse"]], [pinned_reward, pinned_info["rule_rmse"]],
-                                       rtol=1e-12, atol=1e-12)
-        else:
-            np.testing.assert_array_equal(obs, pinned)  # bit-identical: episodes are pure functions of their seed
-            assert (reward, step_info["rule_rmse"]) == (pinned_reward, pinned_info["rule_rmse"])
+        np.testing.assert_array_equal(obs, pinned)  # bit-identical: episodes are pure functions of their seed
+        assert (reward, step_info["rule_rmse"]) == (pinned_reward, pinned_info["rule_rmse"])
 
 
 def test_episode_sequence_does_not_depend_on_blocks_and_reseeding_restarts_it() -> None:
@@ -72,22 +68,49 @@ def test_episode_sequence_does_not_depend_on_blocks_and_reseeding_restarts_it() 
     env.reset(options={"noise_seed": 5})  # a pinned episode leaves the sequence alone
     assert env.reset()[1]["track"]["noise_seed"] == int(rng.integers(2**62))
     assert env.reset(seed=8)[1]["track"]["noise_seed"] == seeds[0]  # reseeding drops the prepared episodes
+    env.reset(seed=3, options={"noise_seed": 5})  # a reseeded pinned reset restarts the sequence too
+    assert env.reset()[1]["track"]["noise_seed"] == int(np.random.default_rng(3).integers(2**62))
 
 
-def test_a_reseeded_reset_prepares_one_episode_and_the_rest_of_its_block_later(monkeypatch: pytest.MonkeyPatch) -> None:
-    """An evaluation loop that calls reset(seed=i) before every episode pays for one episode, not a block of 64;
-    the episodes stay those of the block (test above)."""
+def test_reseeding_with_consecutive_seeds_reads_ahead_and_scattered_seeds_prepare_one(monkeypatch: pytest.MonkeyPatch
+                                                                                       ) -> None:
+    """An evaluation loop reset(seed=i), i = 0, 1, …, gets its episodes prepared in blocks of 1, 2, 4, … up to
+    ``source.block``; a loop over scattered seeds pays for one episode per reset, not a block of 64."""
     env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
     base = env.unwrapped
     sizes: list[int] = []
     prepare = base.prepare
     monkeypatch.setattr(base, "prepare", lambda episodes: sizes.append(len(episodes)) or prepare(episodes))
-    for i in range(3):
+    for i in range(16):
         env.reset(seed=i)
-    first = env.reset()[1]["track"]["noise_seed"]
-    rng = np.random.default_rng(2)
+    assert sizes == [1, 2, 4, 8, 16] and base.source.block >= 16  # seeds 0, 1–2, 3–6, 7–14, 15–30
+    del sizes[:]
+    for seed in (100, 50, 7, 300):
+        env.reset(seed=seed)
+    first = env.reset()[1]["track"]["noise_seed"]  # the rest of seed 300's block, prepared together
+    rng = np.random.default_rng(300)
     rng.integers(2**62)
-    assert sizes == [1, 1, 1, base.source.block - 1] and first == int(rng.integers(2**62))
+    assert sizes == [1, 1, 1, 1, base.source.block - 1] and first == int(rng.integers(2**62))
+
+
+@pytest.mark.parametrize(("backend", "source"), [*((b, "sim") for b in BACKENDS),
+                                                  *(pytest.param(b, "mix", marks=needs_otb) for b in ("ufir_cmn", "kf_cmn"))])
+def test_an_episode_read_ahead_equals_a_fresh_envs(backend: str, source: str) -> None:
+    """reset(seed=s) gives the episode, observation, step and the following unseeded episodes of a fresh env's
+    reset(seed=s), bit for bit, whatever came before (read ahead, prepared alone, or after other resets)."""
+    env = _make("bboxtune/FilterTune-v0", backend, source)
+    action = np.full(env.action_space.shape, -0.2, np.float32)
+
+    def run(e: gym.Env, seed: int) -> list:
+        obs, info = e.reset(seed=seed)
+        _, reward, *_, step_info = e.step(action)
+        return [obs, info, reward, step_info, e.reset()[0]]
+
+    for seed in [*range(9), 4, 20, 21, 22, 2]:
+        got, fresh = run(env, seed), run(_make("bboxtune/FilterTune-v0", backend, source), seed)
+        np.testing.assert_array_equal(got[0], fresh[0])
+        np.testing.assert_array_equal(got[4], fresh[4])
+        assert got[1:4] == fresh[1:4]
 
 
 def test_noise_seed_pins_the_episode() -> None:
