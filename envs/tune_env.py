@@ -276,7 +276,8 @@ class FilterTuneEnv(TrackEnv):
         self._rule: dict[str, Any] = {}
         self._ready: deque[Prepared] = deque()  # prepared, not yet used
         self._pending: deque[int] = deque()  # noise seeds of the current block drawn but not yet prepared
-        self._ahead: dict[int, Prepared] = {}  # episodes of the seeds after the last reseed's, by noise seed
+        self._ahead: dict[int, Prepared] = {}  # episodes read ahead, not yet used, by noise seed
+        self._ahead_width = 0  # episodes the last read-ahead prepared
         self._last_seed: int | None = None  # the seed of the last unpinned reseeded reset
         self._estimate: np.ndarray | None = None
         self._done = True
@@ -286,7 +287,7 @@ class FilterTuneEnv(TrackEnv):
         seed, options = check_reset_args(seed, options)
         block: list[Prepared] = []
         pending: list[int] = []
-        ahead: dict[int, Prepared] | None = None
+        ahead: tuple[dict[int, Prepared], int] | None = None
         with self._seeded(seed):
             if options:  # a pinned episode: prepared alone, the queue stays as it is
                 prepared = self.prepare([self._draw(options)])[0]
@@ -299,7 +300,7 @@ class FilterTuneEnv(TrackEnv):
                 # episodes of the next seeds, read ahead), the block's other noise seeds wait for the next reset
                 seeds = self._noise_seeds(self.source.block)
                 ahead = self._read_ahead(seed, seeds[0])
-                block, pending = [ahead[seeds[0]]], seeds[1:]
+                block, pending = [ahead[0][seeds[0]]], seeds[1:]
                 prepared = block[0]
         # nothing below can fail: the env changes only once the new episode is ready
         if seed is not None:
@@ -311,24 +312,25 @@ class FilterTuneEnv(TrackEnv):
         elif not options:
             self._ready.popleft()
         if ahead is not None:
-            self._ahead, self._last_seed = ahead, seed
+            (self._ahead, self._ahead_width), self._last_seed = ahead, seed
+            del self._ahead[seeds[0]]  # each episode read ahead is handed out once
         self.episode, self._rule, self._obs = prepared
         self._estimate = None
         self._done = False
         return self._obs.copy(), {"track": dict(self.episode.meta)}
 
-    def _read_ahead(self, seed: int, noise_seed: int) -> dict[int, Prepared]:
+    def _read_ahead(self, seed: int, noise_seed: int) -> tuple[dict[int, Prepared], int]:
         """The episodes prepared for ``reset(seed=seed)``, by noise seed: ``noise_seed``'s (the first of the seed's
         block) and, when ``seed`` follows the last reseed's, those of the next seeds, 2, 4, … up to
         ``source.block`` of them in one batch (bit for bit the same: an episode is a function of its noise seed)."""
         if noise_seed in self._ahead:
-            return self._ahead
+            return self._ahead, self._ahead_width
         width = 1
         if self._last_seed is not None and seed == self._last_seed + 1:
-            width = min(2 * len(self._ahead), self.source.block)
+            width = min(2 * self._ahead_width, self.source.block)
         noise_seeds = [noise_seed] + [self._noise_seeds(self.source.block, seeding.np_random(seed + j)[0])[0]
                                       for j in range(1, width)]
-        return dict(zip(noise_seeds, self.prepare(self.source.draw_many(noise_seeds)), strict=True))
+        return dict(zip(noise_seeds, self.prepare(self.source.draw_many(noise_seeds)), strict=True)), width
 
     def prepare(self, episodes: list[Episode]) -> list[Prepared]:
         """Each episode with its fixed-rule run (parameters, estimate, scores, and the ``reference`` scores the

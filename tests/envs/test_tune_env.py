@@ -93,6 +93,15 @@ def test_reseeding_with_consecutive_seeds_reads_ahead_and_scattered_seeds_prepar
     assert sizes == [1, 1, 1, 1, base.source.block - 1] and first == int(rng.integers(2**62))
 
 
+def test_an_episode_read_ahead_is_handed_out_once() -> None:
+    env = _make("bboxtune/FilterTune-v0", "ufir_cmn", "sim")
+    for seed in range(3):  # seed 2's episode is read ahead with seed 1's
+        env.reset(seed=seed)
+    env.unwrapped.episode.y[:] = 0.0  # a caller writing into the episode it got
+    env.reset(seed=2)
+    assert np.abs(env.unwrapped.episode.y).min() > 0  # prepared afresh, not the episode handed out before
+
+
 @pytest.mark.parametrize(("backend", "source"), [*((b, "sim") for b in BACKENDS),
                                                   *(pytest.param(b, "mix", marks=needs_otb) for b in ("ufir_cmn", "kf_cmn"))])
 def test_an_episode_read_ahead_equals_a_fresh_envs(backend: str, source: str) -> None:
