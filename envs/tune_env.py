@@ -133,12 +133,12 @@ class FilterTuneEnv(TrackEnv):
     them out one per reset: the episodes, their order and every value are the same as one at a time (the
     tests check bit-identity with the pinned episode for every back end), but ``np_random`` advances a block at
     a time. ``reset(seed=s)`` discards the prepared block, draws the next block's noise seeds and prepares its
-    first episode (the rest together at the next unseeded reset). When ``s`` is the last reseed's seed + 1 it
-    also reads ahead: the first episodes of seeds s + 1, s + 2, … are prepared with it in one batch, 2, 4, …
-    up to a block of them as the run of consecutive seeds grows, so an evaluation loop ``reset(seed=i)``,
-    i = 0, 1, …, pays for blocks while scattered seeds pay for one episode each. Either way ``reset(seed=s)``
-    gives what it gives on a fresh env, bit for bit (tested). A pinned episode is prepared alone and leaves the
-    block as it is; a pinned reset with a ``seed`` drops the block and restarts the unpinned sequence from it.
+    first episode (the rest together at the next unseeded reset); when ``s`` is the last reseed's seed + 1 it
+    reads ahead, preparing the first episodes of seeds s + 1, s + 2, … with it (2, 4, … up to a block as the run
+    grows), so an evaluation loop ``reset(seed=i)``, i = 0, 1, …, pays for blocks and scattered seeds for one
+    episode each — ``reset(seed=s)`` gives a fresh env's episode either way, bit for bit (tested). A pinned
+    episode is prepared alone and leaves the block as it is; with a ``seed`` it drops the block and restarts the
+    unpinned sequence from it.
 
     ## Episode End
     After one step: ``terminated=True``, ``truncated=False``. ``info`` then holds, for the action and for the rule
@@ -265,10 +265,8 @@ class FilterTuneEnv(TrackEnv):
     * v0, ``features="msd"`` (the default ``"base"`` changes no observation): the centre's mean squared displacement
       over 64 frames as a 21st observation entry (with it PPO closes 91 % of the rule → oracle gap on the default
       scenario instead of 86 %; docs/results-sim.md).
-    * v0, reseeding reads ahead (no change to any episode): consecutive ``reset(seed=i)`` prepare their episodes
-      in blocks (~1.75× → ~1.15× the cost of an unseeded reset in ``scripts/bench_env.py`` [1b]); a pinned
-      reset with a ``seed`` restarts the unpinned sequence from that seed (before, the next unseeded resets went
-      on with the noise seeds of the block an earlier reseed had drawn).
+    * v0, reseeding reads ahead (no change to any episode; ``bench_env.py`` [1b] ~1.75× → ~1.15×); a pinned reset with
+      a ``seed`` restarts the unpinned sequence from it (before: the noise seeds of an earlier reseed's block).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
@@ -296,8 +294,7 @@ class FilterTuneEnv(TrackEnv):
             elif seed is None:  # none left: the next block (its noise seeds drawn at a reseed, or now)
                 block = self.prepare(self.source.draw_many(list(self._pending) or self._noise_seeds(self.source.block)))
                 prepared = block[0]
-            else:  # reseeded: the prepared block is stale; only its first episode is prepared now (and the
-                # episodes of the next seeds, read ahead), the block's other noise seeds wait for the next reset
+            else:  # reseeded: the block is stale; its first episode now (and next seeds' read ahead), the rest later
                 seeds = self._noise_seeds(self.source.block)
                 ahead = self._read_ahead(seed, seeds[0])
                 block, pending = [ahead[0][seeds[0]]], seeds[1:]
