@@ -5,7 +5,9 @@ every step. :class:`TuneBatch` does that work once for all n tracks — one vect
 (``Source.draw_many``), one run of the fixed rule and one feature pass (``FilterTuneEnv.prepare``), one
 batched filter run of the n actions (``bboxtune.envs.episodes.scoring.run_tracks``: one call per track length; the FIR family
 and the Kalman filters run in frame units, so tracks of different τ share it) and one scoring pass — where n
-separate envs would each pay for their own Python loop over time. Two faces over it:
+separate envs would each pay for their own Python loop over time. Each of these splits its tracks over the kernel
+threads (``bboxtune.filters.threads.in_threads``; the same numbers for any thread count), and making a batch sets
+glibc's malloc to keep the memory a step frees for the next (``bboxtune.filters.allocator``). Two faces over it:
 
 * :class:`TuneVectorEnv`, a Gymnasium ``VectorEnv`` with same-step auto-reset, registered as the env's
   ``vector_entry_point``: ``bboxtune.envs.make_vec(env_id, n, **kwargs)`` = ``gym.make_vec(env_id, num_envs=n,
@@ -47,6 +49,7 @@ from gymnasium.vector.utils import batch_space
 from bboxtune.envs.data.memory import check_fits
 from bboxtune.envs.episodes.scoring import SCORE_KEYS, reward_from, run_tracks, score_tracks
 from bboxtune.envs.tune_env import FilterTuneEnv
+from bboxtune.filters.allocator import keep_freed_memory
 
 TUNE_ID = "bboxtune/FilterTune-v0"
 BATCHED_IDS = (TUNE_ID,)  # env ids with a batched vector env
@@ -82,6 +85,7 @@ class TuneBatch:
             raise TypeError("render_mode: not supported by the batched env (render a single env)")
         self.env = FilterTuneEnv(**env_kwargs)
         self.n_envs = int(n_envs)
+        keep_freed_memory()  # a step allocates and frees tens of MB (module docstring)
         frames = self.env.source.max_frames()
         check_fits(batch_bytes(self.n_envs, frames), f"n_envs={self.n_envs} (episodes of up to {frames} frames at once)")
         self.noise_seeds = noise_seeds

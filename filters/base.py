@@ -126,6 +126,7 @@ class Filter(ABC):
     DEFAULTS: ClassVar[dict[str, Any]]  # every accepted parameter and its default
     PER_TRACK: ClassVar[tuple[str, ...]]  # parameters that may be scalars or (B,) arrays, one per track
     IN_FRAMES: ClassVar[bool] = False  # exact in frame units: tracks of any τ run as one batch at τ = 1
+    SPLIT_TRACKS: ClassVar[bool] = True  # a batch's tracks may run in threads (filters.batch.track_positions)
 
     @classmethod
     def params_in_frames(cls, params: dict[str, Any], tau: float | np.ndarray) -> dict[str, Any]:

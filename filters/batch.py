@@ -19,8 +19,9 @@ from functools import lru_cache
 import numpy as np
 
 from bboxtune.filters.base import Filter
-from bboxtune.filters.model import constant_velocity
+from bboxtune.filters.model import StateSpaceModel, constant_velocity
 from bboxtune.filters.registry import filter_class
+from bboxtune.filters.threads import in_threads
 
 
 def _run_intervals(cls: type[Filter], taus: np.ndarray, params: dict[str, np.ndarray]
@@ -47,8 +48,9 @@ def track_positions(name: str, ys: Sequence[np.ndarray], taus: Sequence[float],
                     params: dict[str, np.ndarray]) -> list[np.ndarray]:
     """Back end ``name`` on B tracks ``ys`` (T_b, M), each at its own interval ``taus[b]`` (s) with its own
     parameters ``params`` (arrays (B,)): tracks of equal length (and, outside frame units, equal τ) run in one
-    call. Returns the position estimates, B arrays (T_b, M), each equal to :func:`candidate_positions` on its
-    track alone."""
+    call (many tracks: split over threads, a filter each, :func:`bboxtune.filters.threads.in_threads`, unless the back
+    end splits its own work: ``Filter.SPLIT_TRACKS``). Returns the position estimates, B arrays (T_b, M), each equal to
+    :func:`candidate_positions` on its track alone."""
     cls = filter_class(name)
     taus_run, used = _run_intervals(cls, np.asarray(taus, dtype=float), params)
     groups: dict[tuple[int, float], list[int]] = {}  # the tracks of each (length, interval), in track order
@@ -56,10 +58,18 @@ def track_positions(name: str, ys: Sequence[np.ndarray], taus: Sequence[float],
         groups.setdefault(key, []).append(r)
     out: list[np.ndarray] = [np.empty(0)] * len(ys)
     for (_, tau), rows in sorted(groups.items()):
-        flt = cls(constant_velocity(tau, ndim=ys[rows[0]].shape[-1]), **{k: v[rows] for k, v in used.items()})
-        est = flt.positions(np.stack([ys[r] for r in rows]))
-        for i, r in enumerate(rows):
-            out[r] = est[i]
+        model = constant_velocity(tau, ndim=ys[rows[0]].shape[-1])
+
+        def run(part: slice, rows: list[int] = rows, model: StateSpaceModel = model) -> None:  # a filter per thread
+            flt = cls(model, **{k: v[rows[part]] for k, v in used.items()})
+            est = flt.positions(np.stack([ys[r] for r in rows[part]]))
+            for i, r in enumerate(rows[part]):
+                out[r] = est[i]
+
+        if cls.SPLIT_TRACKS:
+            in_threads(run, len(rows), len(ys[rows[0]]) * ys[rows[0]].shape[-1])
+        else:
+            run(slice(0, len(rows)))
     return out
 
 

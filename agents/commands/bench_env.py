@@ -15,7 +15,8 @@ For ``bboxtune/FilterTune-v0`` (source "sim", 500-frame 4-coordinate box tracks)
 3. the cost of a step in runs of the filter alone (one candidate, gains cached), from the same run, as a ratio;
 4. env steps/s of the batched vec env (``bboxtune.agents.training.batched.TuneVecEnv``, ``--n-envs`` tracks per step, what
    ``train.py`` trains on; targets >= 10,000 for ufir_cmn, >= 6,000 for kf_cmn), as a ratio to [1] and to
-   filterpy's ``KalmanFilter`` loop running the same tracks (``--filterpy-tracks`` of them; tracks/s).
+   filterpy's ``KalmanFilter`` loop running the same tracks (``--filterpy-tracks`` of them; tracks/s), with the kernel
+   threads it ran on and the minor page faults a step (memory mapped afresh, ``bboxtune.filters.allocator``).
 
 Rates are the best of ``--repeat`` timed blocks (the machine is shared; the best block is the least disturbed), with
 the median in parentheses. Every block draws fresh random actions, so no filter gain comes from the cache of an
@@ -24,6 +25,7 @@ earlier block (the fixed rule's gains repeat and are cached, as in training). No
 
 from __future__ import annotations
 
+import resource
 import time
 from typing import TYPE_CHECKING, cast
 
@@ -40,6 +42,7 @@ from bboxtune.agents.training.runs import make_vec
 from bboxtune.envs.episodes.actions import BACKENDS
 from bboxtune.envs.episodes.config import EnvConfig
 from bboxtune.envs.episodes.scoring import run_positions
+from bboxtune.filters.threads import kernel_threads
 
 if TYPE_CHECKING:
     from bboxtune.agents.training.batched import TuneVecEnv
@@ -140,16 +143,23 @@ def main(argv: list[str] | None = None) -> int:
     print(f"[3] the filter alone (one candidate, its gains cached): {filter_rate:,.0f} runs/s; a step costs "
           f"{filter_rate / step_rate:.1f} filter runs (a step includes a rule run, the simulation, features, scoring)")
 
-    vec_rate, vec_median, filterpy_rate = batched_rates(args)
+    vec_rate, vec_median, filterpy_rate, faults = batched_rates(args)
     target = {"ufir_cmn": 10_000, "kf_cmn": 6_000}.get(args.backend)
     print(f"[4] batched vec env, {args.n_envs} envs: {vec_rate:,.0f} ({vec_median:,.0f}) env steps/s"
           + (f" (target >= {target:,})" if target else "") + f"; {vec_rate / step_rate:.1f}x [1]; filterpy KalmanFilter "
-          f"loop on the same tracks: {filterpy_rate:,.1f} tracks/s (batched env steps/s: {vec_rate / filterpy_rate:,.0f}x that)")
+          f"loop on the same tracks: {filterpy_rate:,.1f} tracks/s (batched env steps/s: {vec_rate / filterpy_rate:,.0f}x that); "
+          f"{kernel_threads()} kernel threads, {faults:,.0f} minor page faults a step")
     return 0
 
 
-def batched_rates(args) -> tuple[float, float, float]:
-    """[4]: (best, median) env steps/s of the batched vec env and filterpy's tracks/s on its tracks."""
+def minor_faults() -> int:
+    """The process's minor page faults so far."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+
+
+def batched_rates(args) -> tuple[float, float, float, float]:
+    """[4]: (best, median) env steps/s of the batched vec env, filterpy's tracks/s on its tracks and the minor page
+    faults a vec env step (pages the step's arrays mapped afresh: ``bboxtune.filters.allocator``)."""
     venv = make_vec("bboxtune/FilterTune-v0", {"backend": args.backend, "track_length": args.track_length},
                     split="train", n_envs=args.n_envs, seed=args.seed, vec_env="batched")
     venv.reset()
@@ -161,11 +171,13 @@ def batched_rates(args) -> tuple[float, float, float]:
         for a in actions[r]:
             venv.step(a)
 
+    before = minor_faults()
     best, median = rates(args.vec_steps * args.n_envs, vec_steps, args.repeat)
+    faults = (minor_faults() - before) / (args.repeat * args.vec_steps)
     episodes = [p[0] for p in cast("TuneVecEnv", venv).batch.prepared[:args.filterpy_tracks]]  # vec_env="batched"
     y = np.stack([ep.y for ep in episodes])
     model = filters.constant_velocity(float(episodes[0].tau), ndim=4)  # filterpy's cost does not depend on τ
     nominal = episodes[0].nominal
     x0, P0 = np.concatenate([y[0, 0], np.zeros(4)]), np.diag([nominal.sigma_v**2] * 4 + [1e6] * 4)
     filterpy_rate, _ = rates(len(episodes), lambda r: filterpy_loop(y, model, nominal.sigma_w, nominal.sigma_v, x0, P0), 1)
-    return best, median, filterpy_rate
+    return best, median, filterpy_rate, faults

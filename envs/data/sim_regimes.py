@@ -76,7 +76,7 @@ def simulate_nonstationary(base: Scenario, noise_seed: int, psi_range: tuple[flo
     manoeuvres = _intervals(rng, ranges.manoeuvres, ranges.manoeuvre_frames, T)
     gaps = _intervals(rng, ranges.gaps, ranges.gap_frames, T)
 
-    p0, v0, sigma, sigma_xi, sizes0 = initial_conditions(base)
+    p0, v0, sigma, sigma_xi, sizes0 = (a[0] for a in initial_conditions([base]))
     gain = np.ones((T - 1, 1))
     for start, end in manoeuvres:  # w_n moves frame n: frames [start, end) accelerate harder
         gain[max(start - 1, 0):end - 1] = ranges.manoeuvre_gain

@@ -46,6 +46,7 @@ from scipy.signal import lfilter
 from bboxtune.envs.data import simulate_kernels
 from bboxtune.envs.data.sim_motion import OTB_MOTION, draw_extra, otb_paths, reflect
 from bboxtune.filters import jit
+from bboxtune.filters.threads import in_threads
 
 MOTIONS = ("cv", "otb")  # truth motion models: constant velocity ([Shmaliy-CMN] eq. 1) or fitted to OTB-100
 _NDIMS = (1, 2, 4)  # scalar two-state, centroid (cx, cy), box (cx, cy, w, h)
@@ -98,13 +99,13 @@ class Scenario:
             raise ValueError(f"n_frames={self.n_frames!r} is out of range: allowed integers >= 2")
         if not (math.isfinite(self.delta) and self.tau + self.delta > 0):
             raise ValueError(f"delta={self.delta!r} is out of range: allowed finite with tau + delta > 0")
-        x0 = self.initial_state
-        if x0.shape != (self.K,) or not np.isfinite(x0).all():
+        x0 = self.initial_state.tolist()  # Python floats: faster checks of a few values than numpy's
+        if np.shape(x0) != (self.K,) or not all(math.isfinite(v) for v in x0):
             raise ValueError(f"x0={self.x0!r} must be {self.K} finite values [positions…, velocities…]")
         lo, hi = self.size_bounds
         if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
             raise ValueError(f"size_bounds={self.size_bounds!r} is out of range: allowed finite 0 < low < high (px)")
-        if self.ndim == 4 and not ((lo <= x0[2:4]) & (x0[2:4] <= hi)).all():
+        if self.ndim == 4 and not (lo <= x0[2] <= hi and lo <= x0[3] <= hi):
             raise ValueError(f"x0={self.x0!r}: box sizes x0[2], x0[3] must lie within size_bounds={self.size_bounds!r} px")
 
     @property
@@ -173,7 +174,7 @@ def simulate(scenario: Scenario, rng: np.random.Generator, n_tracks: int | None 
     if n_tracks is not None and (not isinstance(n_tracks, (int, np.integer)) or n_tracks < 1):
         raise ValueError(f"n_tracks={n_tracks!r} is out of range: allowed None or an integer >= 1")
     s, B, T = scenario, 1 if n_tracks is None else int(n_tracks), scenario.n_frames
-    p0, v0, sigma, sigma_xi, sizes0 = initial_conditions(s)
+    p0, v0, sigma, sigma_xi, sizes0 = (a[0] for a in initial_conditions([s]))
     w = rng.standard_normal((B, T - 1, len(sigma)))
     e = rng.standard_normal((B, T, s.M)) * sigma_xi
     if s.motion == "otb":
@@ -190,12 +191,24 @@ def simulate(scenario: Scenario, rng: np.random.Generator, n_tracks: int | None 
 def simulate_each(scenarios: list[Scenario], rngs: list[np.random.Generator]) -> list[Track]:
     """One track per (scenario, generator) pair, each equal to ``simulate(scenario, rng)``, in one
     vectorised pass (the scenarios must share ``n_frames``, ``ndim`` and ``motion``; the random draws stay per
-    generator)."""
+    generator; a large batch is split over threads, each on its own tracks and generators: the same numbers)."""
     s0 = scenarios[0]
     if len(rngs) != len(scenarios) or any((s.n_frames, s.ndim, s.motion) != (s0.n_frames, s0.ndim, s0.motion) for s in scenarios):
         raise ValueError("simulate_each needs one generator per scenario and scenarios of equal n_frames, ndim and motion")
-    starts = [initial_conditions(s) for s in scenarios]
-    T, C, B = s0.n_frames, len(starts[0][2]), len(scenarios)
+    starts = initial_conditions(scenarios)
+
+    def simulate_part(part: slice) -> list[Track]:  # in a thread of its own (numpy's draws, the kernels: no GIL)
+        return _simulate_rows(scenarios[part], rngs[part], tuple(a[part] for a in starts))
+
+    return [track for tracks in in_threads(simulate_part, len(scenarios), s0.n_frames * s0.M) for track in tracks]
+
+
+def _simulate_rows(scenarios: list[Scenario], rngs: list[np.random.Generator], starts: tuple[np.ndarray, ...]
+                   ) -> list[Track]:
+    """:func:`simulate_each` of one part of its batch, with the scenarios' :func:`initial_conditions` ``starts``."""
+    s0 = scenarios[0]
+    p0, v0, sigma, sigma_xi, sizes0 = starts
+    T, C, B = s0.n_frames, sigma.shape[1], len(scenarios)
     w, e = np.empty((B, T - 1, C)), np.empty((B, T, s0.M))
     normals, uniforms = np.empty((B, T + 1, 2)), np.empty((B, T, 2))
     for i, rng in enumerate(rngs):  # in simulate's order: w, ξ, extras (filled in place: the same numbers)
@@ -204,31 +217,35 @@ def simulate_each(scenarios: list[Scenario], rngs: list[np.random.Generator]) ->
         if s0.motion == "otb":
             normals[i], uniforms[i] = draw_extra(rng, T)
     if s0.motion == "cv":
-        w *= np.stack([start[2] for start in starts])[:, None]
-    e *= np.stack([start[3] for start in starts])[:, None]
+        w *= sigma[:, None]
+    e *= sigma_xi[:, None]
     cmn = _colour_each(e, [s.psi for s in scenarios])
     if s0.motion == "otb":
         truth, state, y = _assemble_otb(scenarios, w, normals, uniforms, cmn)
         return [Track(truth=truth[i], truth_state=state[i], y=y[i], tau=s.tau) for i, s in enumerate(scenarios)]
     column = lambda name: np.array([getattr(s, name) for s in scenarios])[:, None, None]  # noqa: E731
-    p0, v0, sizes0 = (np.stack([start[k] for start in starts]) for k in (0, 1, 4))
     bounds = np.array([s.size_bounds for s in scenarios])[:, None]  # (B, 1, 2): low, high per track
     truth, state, y = assemble(p0, v0, w, column("tau"), column("delta"), cmn, sizes0[:, None], bounds)
     return [Track(truth=truth[i], truth_state=state[i], y=y[i], tau=s.tau) for i, s in enumerate(scenarios)]
 
 
-def initial_conditions(s: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Initial positions and velocities of the simulated coordinates (box sizes in log space), their
-    acceleration noise std, the ξ std of each measured coordinate and the initial box size (w_0, h_0)
-    (empty unless ndim = 4)."""
-    x0, M = s.initial_state, s.M
+def initial_conditions(scenarios: list[Scenario]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per scenario (one row each; all of one ndim): the initial positions and velocities of the simulated
+    coordinates (box sizes in log space) (B, C), their acceleration noise std (B, C), the ξ std of each measured
+    coordinate (B, M) and the initial box size (w_0, h_0) (B, 2) (B, 0 unless ndim = 4)."""
+    M, B = scenarios[0].M, len(scenarios)
+    default = _DEFAULT_BOX_X0 if M == 4 else (0.0,) * (2 * M)
+    x0 = np.array([default if s.x0 is None else s.x0 for s in scenarios], dtype=float)
+    sigma_w, sigma_xi = np.array([s.sigma_w for s in scenarios]), np.array([s.sigma_xi for s in scenarios])[:, None]
     if M == 4:
-        sizes0 = x0[2:4]
-        p0 = np.concatenate([x0[:2], [0.0, 0.0]])  # log sizes ℓ start at 0
-        v0 = np.concatenate([x0[4:6], x0[6:8] / sizes0])  # ℓ̇_0 = ẇ_0 / w_0
-        sigma = np.array([s.sigma_w, s.sigma_w, s.sigma_w_log_size, s.sigma_w_log_size])
-        return p0, v0, sigma, s.sigma_xi * np.array([1.0, 1.0, s.size_noise_ratio, s.size_noise_ratio]), sizes0
-    return x0[:M], x0[M:], np.full(M, s.sigma_w), np.full(M, s.sigma_xi), np.empty(0)
+        sizes0, ones = x0[:, 2:4], np.ones(B)
+        p0 = np.concatenate([x0[:, :2], np.zeros((B, 2))], axis=1)  # log sizes ℓ start at 0
+        v0 = np.concatenate([x0[:, 4:6], x0[:, 6:8] / sizes0], axis=1)  # ℓ̇_0 = ẇ_0 / w_0
+        log_size = np.array([s.sigma_w_log_size for s in scenarios])
+        ratio = np.array([s.size_noise_ratio for s in scenarios])
+        return (p0, v0, np.stack([sigma_w, sigma_w, log_size, log_size], axis=1),
+                sigma_xi * np.stack([ones, ones, ratio, ratio], axis=1), sizes0)
+    return x0[:, :M], x0[:, M:], np.repeat(sigma_w[:, None], M, axis=1), np.repeat(sigma_xi, M, axis=1), np.empty((B, 0))
 
 
 def assemble(p0: np.ndarray, v0: np.ndarray, w: np.ndarray, tau: float | np.ndarray, delta: float | np.ndarray,
@@ -323,19 +340,23 @@ class ScenarioRanges:
 
     def sample(self, rng: np.random.Generator) -> Scenario:
         """Draw one scenario (the x0 of a box puts a box of random size at rest at (320, 240)); "otb" motion
-        draws its levels after the other fields, so the "cv" fields of a seed are the same under both."""
-        x0 = None
-        if self.ndim == 4:
-            x0 = (320.0, 240.0, log_uniform(rng, self.size), log_uniform(rng, self.size), 0.0, 0.0, 0.0, 0.0)
+        draws its levels after the other fields, so the "cv" fields of a seed are the same under both.
+
+        The uniforms of the initial sizes, ψ, σ_w, σ_ξ and τ — one for each whose range is not a point, in that
+        order — come from one ``rng.random`` call: the same numbers, and the same values, as a ``rng.uniform(low,
+        high)`` each (low + (high − low)·u)."""
+        fields = [*[(self.size, True)] * (2 if self.ndim == 4 else 0), (self.psi, False), (self.sigma_w, True),
+                  (self.sigma_xi, True), (self.tau, False)]  # (range, log-uniform)
+        bounds = [(math.log(lo), math.log(hi)) if log else (lo, hi) for (lo, hi), log in fields]
+        u = iter(rng.random(sum(hi > lo for lo, hi in bounds)).tolist())
+        drawn = [lo + (hi - lo) * next(u) if hi > lo else float(lo) for lo, hi in bounds]  # in field order
+        *size, psi, sigma_w, sigma_xi, tau = [math.exp(v) if log else v for v, (_, log) in zip(drawn, fields, strict=True)]
         scenario = Scenario(
-            psi=_uniform(rng, self.psi),
-            sigma_w=log_uniform(rng, self.sigma_w),
-            sigma_xi=log_uniform(rng, self.sigma_xi),
-            tau=_uniform(rng, self.tau),
+            psi=psi, sigma_w=sigma_w, sigma_xi=sigma_xi, tau=tau,
             n_frames=int(rng.integers(self.n_frames[0], self.n_frames[1], endpoint=True)),
             ndim=self.ndim,
             delta=_uniform(rng, self.delta),
-            x0=x0,
+            x0=(320.0, 240.0, *size, 0.0, 0.0, 0.0, 0.0) if size else None,
             size_bounds=self.size_bounds,
         )
         if self.motion == "cv":

@@ -49,6 +49,7 @@ import numpy as np
 from bboxtune.envs.episodes import features_kernels
 from bboxtune.filters import jit
 from bboxtune.filters.horizon import n_opt
+from bboxtune.filters.threads import in_threads
 from bboxtune.filters.validation import SIGMA_RANGE, TAU_RANGE
 
 FEATURE_NAMES: tuple[str, ...] = (
@@ -261,9 +262,14 @@ def _base_features(y: np.ndarray, tau: np.ndarray, nominal_sigma_v: object, nomi
     if jit.enabled() and all(s.dtype.kind in "iuf" and s.ndim <= 1 for s in nominal):  # one compiled call
         nominal_v, nominal_w = (_per_track(s, B) for s in nominal)
         Y, rule = (np.ascontiguousarray(a, dtype=float) for a in (y, rule_positions))
-        obs, valid = features_kernels.track_observations(Y, rule, tau, nominal_v, nominal_w, SIGMA_RANGE, TAU_RANGE)
-        if valid:
-            return obs
+
+        def observe(rows: slice) -> tuple[np.ndarray, bool]:  # in a thread of its own on large batches (no GIL)
+            return features_kernels.track_observations(Y[rows], rule[rows], tau[rows], nominal_v[rows], nominal_w[rows],
+                                                       SIGMA_RANGE, TAU_RANGE)
+
+        parts = in_threads(observe, B, Y.shape[1] * Y.shape[2])
+        if all(valid for _, valid in parts):
+            return np.concatenate([obs for obs, _ in parts]) if len(parts) > 1 else parts[0][0]
     Y = _time_last(y)  # (B, 4, T)
     stats = _statistics(Y, Y - _time_last(rule_positions))
     sv, sw = _sigmas(stats, tau, Y.shape[-1])

@@ -42,7 +42,8 @@ def _track_autocovariance(x: np.ndarray, first: int, stop: int, order: int, stri
                           d: np.ndarray, ok: np.ndarray) -> None:
     """Pooled NaN-aware autocovariances c_0..c_{len(out) − 1} into ``out`` of the differences of the series
     ``first``..``stop − 1`` of one track ``x`` (m, T): each series centred on the mean of its finite values, lag-k
-    products averaged over the pairs where both exist (0 without a pair). ``d``, ``ok`` (m, T): scratch."""
+    products averaged over the pairs where both exist (0 without a pair); ``len(out)`` <= 4. ``d``, ``ok`` (m, T):
+    scratch."""
     L = max(x.shape[1] - order * stride, 0)  # length of a differenced series
     n_lags = min(len(out) - 1, L - 1) + 1
     complete = True
@@ -59,23 +60,42 @@ def _track_autocovariance(x: np.ndarray, first: int, stop: int, order: int, stri
         mean = total / max(count, 1)
         for t in range(L):
             d[j, t] = d[j, t] - mean if ok[j, t] else 0.0
+    # the lag-k sums p_k of d_{t+k} d_t (and q_k of the pairs), each in series then time order, side by side in
+    # one pass (independent sums: none waits on another's last addition)
+    p0 = p1 = p2 = p3 = 0.0
+    q0 = q1 = q2 = q3 = 0
+    for j in range(stop - first):
+        for t in range(L):
+            x = d[j, t]
+            p0 += x * x
+            if n_lags > 1 and t + 1 < L:
+                p1 += d[j, t + 1] * x
+            if n_lags > 2 and t + 2 < L:
+                p2 += d[j, t + 2] * x
+            if n_lags > 3 and t + 3 < L:
+                p3 += d[j, t + 3] * x
+        if not complete:
+            for t in range(L):
+                q0 += ok[j, t]
+                if n_lags > 1 and t + 1 < L:
+                    q1 += ok[j, t + 1] and ok[j, t]
+                if n_lags > 2 and t + 2 < L:
+                    q2 += ok[j, t + 2] and ok[j, t]
+                if n_lags > 3 and t + 3 < L:
+                    q3 += ok[j, t + 3] and ok[j, t]
     out[:] = 0.0
-    for k in range(n_lags):
-        products, pairs = 0.0, 0
-        for j in range(stop - first):
-            for t in range(L - k):
-                products += d[j, t + k] * d[j, t]
-            if not complete:
-                for t in range(L - k):
-                    pairs += ok[j, t + k] and ok[j, t]
-        if complete:
-            pairs = (L - k) * (stop - first)
-        out[k] = products / pairs if pairs > 0 else 0.0
+    for k, (products, pairs) in enumerate(((p0, q0), (p1, q1), (p2, q2), (p3, q3))):
+        if k < n_lags:
+            if complete:
+                pairs = (L - k) * (stop - first)
+            out[k] = products / pairs if pairs > 0 else 0.0
 
 
 @jit.kernel
 def autocovariances(x: np.ndarray, first: int, stop: int, order: int, stride: int, lags: int) -> np.ndarray:
-    """:func:`_track_autocovariance` (N, lags + 1) of each track of ``x`` (N, m, T)."""
+    """:func:`_track_autocovariance` (N, lags + 1) of each track of ``x`` (N, m, T); 0 <= ``lags`` <= 3."""
+    if not 0 <= lags <= 3:
+        raise ValueError("lags: allowed 0 to 3")
     out = np.zeros((x.shape[0], lags + 1))
     d, ok = np.empty((x.shape[1], x.shape[2])), np.empty((x.shape[1], x.shape[2]), dtype=np.bool_)
     for b in range(x.shape[0]):
@@ -147,6 +167,26 @@ _JOBS = np.array([(0, 0, 2, 1, 1, 4, D1_POS), (0, 0, 2, 2, 1, 4, D2_POS), (0, 2,
 
 
 @jit.kernel
+def _track_statistics(y: np.ndarray, resid: np.ndarray, out: np.ndarray, d: np.ndarray, ok: np.ndarray,
+                      values: np.ndarray) -> None:
+    """The statistics (N_STATISTICS,) into ``out`` (zeros) of one track's boxes ``y`` and the fixed rule's residuals
+    ``resid`` (4, T), time last. ``d``, ``ok`` (4, T), ``values`` (T,): scratch."""
+    m, T = y.shape
+    for job in _JOBS:
+        source, first, stop, order, stride, n, column = job
+        if stride == 1 or 8 * stride < T:  # the σ_w strides with 8k < T
+            _track_autocovariance(resid if source else y, first, stop, order, stride, out[column:column + n], d, ok)
+    out[SCALE] = _track_scale(y[2], y[3], values)
+    missing = 0
+    for t in range(T):
+        for j in range(m):
+            if not math.isfinite(y[j, t]):
+                missing += 1
+                break
+    out[MISSING] = missing / T
+
+
+@jit.kernel
 def measurement_statistics(y: np.ndarray, resid: np.ndarray) -> np.ndarray:
     """The statistics (B, N_STATISTICS) (columns: the module's constants) of the measured boxes ``y`` (B, 4, T)
     and the fixed rule's residuals ``resid`` (B, 4, T), time last."""
@@ -154,19 +194,7 @@ def measurement_statistics(y: np.ndarray, resid: np.ndarray) -> np.ndarray:
     out = np.zeros((B, N_STATISTICS))
     d, ok, values = np.empty((m, T)), np.empty((m, T), dtype=np.bool_), np.empty(T)
     for b in range(B):
-        for job in _JOBS:
-            source, first, stop, order, stride, n, column = job
-            if stride == 1 or 8 * stride < T:  # the σ_w strides with 8k < T
-                _track_autocovariance(resid[b] if source else y[b], first, stop, order, stride,
-                                      out[b, column:column + n], d, ok)
-        out[b, SCALE] = _track_scale(y[b, 2], y[b, 3], values)
-        missing = 0
-        for t in range(T):
-            for j in range(m):
-                if not math.isfinite(y[b, j, t]):
-                    missing += 1
-                    break
-        out[b, MISSING] = missing / T
+        _track_statistics(y[b], resid[b], out[b], d, ok, values)
     return out
 
 
@@ -246,13 +274,15 @@ def track_observations(y: np.ndarray, rule: np.ndarray, tau: np.ndarray, nominal
     (B,): the observations (B, 20) and whether every σ and τ lies in its allowed range. One call instead of three
     and their numpy glue: what a tuner pays for every track it sees, most of all one track at a time."""
     B, T, m = y.shape
-    series, resid = np.empty((B, m, T)), np.empty((B, m, T))
-    for b in range(B):
+    stats = np.zeros((B, N_STATISTICS))
+    series, resid, d = np.empty((m, T)), np.empty((m, T)), np.empty((m, T))
+    ok, values = np.empty((m, T), dtype=np.bool_), np.empty(T)
+    for b in range(B):  # one track at a time, time last: scratch that stays in the cache
         for j in range(m):
             for t in range(T):
-                series[b, j, t] = y[b, t, j]
-                resid[b, j, t] = y[b, t, j] - rule[b, t, j]
-    stats = measurement_statistics(series, resid)
+                series[j, t] = y[b, t, j]
+                resid[j, t] = y[b, t, j] - rule[b, t, j]
+        _track_statistics(series, resid, stats[b], d, ok, values)
     c0, c1 = np.ascontiguousarray(stats[:, D2_POS]), np.ascontiguousarray(stats[:, D2_POS + 1])
     strided = np.ascontiguousarray(stats[:, STRIDED:STRIDED + len(STRIDES)])
     sigma_v, sigma_w = sigmas(c0, c1, strided, tau, np.ascontiguousarray(stats[:, SCALE]), T)

@@ -13,6 +13,7 @@ from bboxtune.envs.episodes import scoring_kernels
 from bboxtune.envs.episodes.actions import ACCEPTS
 from bboxtune.filters import jit
 from bboxtune.filters.bytetrack_kf import SIZE_MIN
+from bboxtune.filters.threads import in_threads
 
 SCORE_KEYS = ("rmse", "iou_mean", "success_auc", "precision20", "iou_precision")
 # back ends that take boxes with w, h >= SIZE_MIN only (they filter the aspect w / h)
@@ -134,11 +135,16 @@ def score_estimates(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]
 
 def _scores(est: np.ndarray, truth: np.ndarray, est_starts: np.ndarray, truth_starts: np.ndarray,
             lengths: np.ndarray) -> dict[str, np.ndarray]:
-    """:func:`bboxtune.envs.episodes.scoring_kernels.score_segments` on rows (N, >= 4) of boxes, as a dict of SCORE_KEYS."""
-    out = scoring_kernels.score_segments(np.ascontiguousarray(est[:, :4]), np.ascontiguousarray(truth[:, :4]),
-                                         est_starts, truth_starts, lengths, scoring_kernels.THRESHOLDS,
-                                         scoring_kernels.RADIUS2)
-    return dict(zip(SCORE_KEYS, out, strict=True))
+    """:func:`bboxtune.envs.episodes.scoring_kernels.score_segments` on rows (N, >= 4) of boxes, as a dict of SCORE_KEYS
+    (many segments: in threads, each on its own segments)."""
+    e, g = np.ascontiguousarray(est[:, :4]), np.ascontiguousarray(truth[:, :4])
+
+    def score(part: slice) -> np.ndarray:
+        return scoring_kernels.score_segments(e, g, est_starts[part], truth_starts[part], lengths[part],
+                                              scoring_kernels.THRESHOLDS, scoring_kernels.RADIUS2)
+
+    parts = in_threads(score, len(lengths), 4 * len(e) // max(len(lengths), 1))  # channel frames
+    return dict(zip(SCORE_KEYS, np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0], strict=True))
 
 
 def score_estimates_numpy(est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:

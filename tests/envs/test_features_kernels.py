@@ -200,3 +200,10 @@ def test_measurement_features_with_msd_append_one_entry() -> None:
     sparse = np.full((1, 300, 4), np.nan)
     sparse[0, [0, 64, 128]] = [320.0, 240.0, 60.0, 40.0]  # two pairs 64 frames apart
     assert features.measurement_features(sparse, 0.05, 3.0, 10.0, sparse, msd=True)[0, -1] == np.float32(np.log(1e-12))
+
+
+@pytest.mark.parametrize("lags", [-1, 4])
+def test_autocovariances_refuse_lags_beyond_three(lags: int) -> None:
+    """The kernel sums lags 0 to 3 side by side: more are refused, not left out."""
+    with pytest.raises(ValueError, match="lags: allowed 0 to 3"):
+        features_kernels.autocovariances(np.zeros((1, 4, 20)), 0, 4, 1, 1, lags)

@@ -4,7 +4,7 @@ frames isolated (5 %) or in runs (40–60 %)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 
 import numpy as np
@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from bboxtune import filters
 from bboxtune.filters import jit, threads, window_scan_kernels
 from bboxtune.filters.ufir import ufir_iterative
+from tests.kernel_modes import counting_splits
 
 TAU = 1 / 30
 RTOL = 1e-9
@@ -132,14 +133,7 @@ def test_window_kf_scan_in_threads_equals_one_thread_bit_for_bit(name: str, monk
     params = {"horizon": np.array([4, 30, 30, 61, 8, 30, 30, 2, 200]), "sigma_w": 40.0, "sigma_v": 3.0}
     flt = filters.make(name, filters.constant_velocity(TAU, ndim=4), **params)
     slices: list[int] = []
-    split = threads.in_threads
-
-    def counted(fn: Callable[[slice], int], n: int, work: int) -> list[int]:
-        out = split(fn, n, work)
-        slices.append(len(out))
-        return out
-
-    monkeypatch.setattr(window_scan_kernels, "in_threads", counted)
+    monkeypatch.setattr(window_scan_kernels, "in_threads", counting_splits(slices))
     monkeypatch.setattr(threads, "MIN_WORK", 1)
     monkeypatch.setenv(threads.KERNEL_ENV_VAR, "3")
     with kernels(True):

@@ -90,3 +90,43 @@ def test_a_bad_kernel_thread_count_is_refused_naming_the_variable(text: str, mon
     monkeypatch.setenv(threads.KERNEL_ENV_VAR, text)
     with pytest.raises(ValueError, match=f"{threads.KERNEL_ENV_VAR}=.*allowed: an integer in \\[1, 1024\\]"):
         threads.kernel_threads()
+
+
+def test_in_threads_keeps_its_threads_and_runs_a_nested_call_in_place(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The pool's threads serve call after call; a call from one of them runs there, in one slice (a nested split
+    would wait on the pool it runs in)."""
+    monkeypatch.setattr(threads, "MIN_WORK", 1)
+    monkeypatch.setenv(threads.KERNEL_ENV_VAR, "2")
+    ident = lambda s: (threading.get_ident(), threading.current_thread().name)  # noqa: E731
+    calls = [threads.in_threads(ident, 4, 1) for _ in range(10)]
+    workers = {thread for call in calls for thread in call}
+    assert len(workers) <= 2 and all(name.startswith("bboxtune-kernel") for _, name in workers)
+    first = [ident for ident, _ in workers]
+
+    def nested(s: slice) -> list[tuple[int, int, int]]:
+        return threads.in_threads(lambda inner: (inner.start, inner.stop, threading.get_ident()), 6, 1)
+    for inner, worker in zip(threads.in_threads(nested, 2, 1), first, strict=True):
+        assert [part[:2] for part in inner] == [(0, 6)] and inner[0][2] in first
+        assert worker in first
+
+
+def test_a_forked_process_gets_a_pool_of_its_own(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The pool is kept per process id: a forked child, which has none of its parent's threads, starts its own."""
+    monkeypatch.setattr(threads, "MIN_WORK", 1)
+    monkeypatch.setenv(threads.KERNEL_ENV_VAR, "2")
+    parent = threads._pool(2)
+    monkeypatch.setattr(threads.os, "getpid", lambda: -1)
+    child = threads._pool(2)
+    assert child is not parent and threads.in_threads(lambda s: s.stop - s.start, 4, 1) == [2, 2]
+
+
+def test_a_slice_that_raises_raises_in_the_caller(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(threads, "MIN_WORK", 1)
+    monkeypatch.setenv(threads.KERNEL_ENV_VAR, "2")
+
+    def second_fails(s: slice) -> int:
+        if s.start:
+            raise FloatingPointError("slice failed")
+        return 0
+    with pytest.raises(FloatingPointError, match="slice failed"):
+        threads.in_threads(second_fails, 4, 1)

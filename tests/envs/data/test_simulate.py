@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bboxtune.envs.data.sim_motion import reflect
+from bboxtune.envs.data.sim_motion import OTB_MOTION, reflect
 from bboxtune.envs.data.simulate import PRESETS, Scenario, ScenarioRanges, simulate, simulate_each
 
 
@@ -175,6 +175,38 @@ def test_scenario_ranges_sample_in_range_and_reproducible():
     assert 0.4 < np.mean([s.sigma_w < 10.0 for s in draws]) < 0.6
     fixed = ScenarioRanges(psi=(0.5, 0.5), ndim=1).sample(np.random.default_rng(0))
     assert fixed.psi == 0.5 and fixed.ndim == 1 and fixed.x0 is None
+
+
+def _sample_one_draw_each(ranges: ScenarioRanges, rng: np.random.Generator) -> Scenario:
+    """ScenarioRanges.sample as one ``rng.uniform`` call per field (what sample draws in one call)."""
+    def draw(bounds: tuple[float, float], log: bool) -> float:
+        lo, hi = (math.log(bounds[0]), math.log(bounds[1])) if log else bounds
+        value = float(rng.uniform(lo, hi)) if hi > lo else float(lo)
+        return math.exp(value) if log else value
+    size = [draw(ranges.size, True), draw(ranges.size, True)] if ranges.ndim == 4 else []
+    psi, sigma_w, sigma_xi, tau = draw(ranges.psi, False), draw(ranges.sigma_w, True), draw(ranges.sigma_xi, True), \
+        draw(ranges.tau, False)
+    n_frames = int(rng.integers(ranges.n_frames[0], ranges.n_frames[1], endpoint=True))
+    scenario = Scenario(psi=psi, sigma_w=sigma_w, sigma_xi=sigma_xi, tau=tau, n_frames=n_frames, ndim=ranges.ndim,
+                        delta=draw(ranges.delta, False), x0=(320.0, 240.0, *size, 0.0, 0.0, 0.0, 0.0) if size else None,
+                        size_bounds=ranges.size_bounds)
+    if ranges.motion == "otb":
+        velocity_rms, size_rw = OTB_MOTION.sample_levels(rng)
+        scenario = replace(scenario, motion="otb", velocity_rms=velocity_rms, size_rw=size_rw)
+    return scenario
+
+
+@pytest.mark.parametrize("ranges", [ScenarioRanges(), ScenarioRanges(n_frames=(500, 500), delta=(0.0, 0.02)),
+                                    ScenarioRanges(psi=(0.3, 0.3), sigma_w=(2.0, 2.0), ndim=1),
+                                    ScenarioRanges(size=(40.0, 40.0), tau=(0.05, 0.05), motion="otb"),
+                                    ScenarioRanges(ndim=2, sigma_xi=(1.0, 1.0 + 1e-12))])
+def test_scenario_ranges_sample_draws_what_one_uniform_per_field_draws(ranges: ScenarioRanges) -> None:
+    """One ``rng.random`` call for the uniform fields gives the same scenarios, bit for bit, and leaves the generator
+    where one call per field leaves it."""
+    for seed in range(200):
+        a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+        assert ranges.sample(a) == _sample_one_draw_each(ranges, b)
+        assert a.random() == b.random()
 
 
 @pytest.mark.parametrize(
