@@ -33,7 +33,6 @@ def split_calls(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[Callable[
         monkeypatch.setenv(threads.KERNEL_ENV_VAR, "3")
         monkeypatch.setattr(threads, "MIN_WORK", 1)
         counts.clear()
-        monkeypatch.setattr(threads, "in_threads", counted)
         for module in ("bboxtune.envs.data.simulate", "bboxtune.envs.episodes.features", "bboxtune.envs.episodes.scoring",
                        "bboxtune.filters.batch"):
             monkeypatch.setattr(f"{module}.in_threads", counted)
