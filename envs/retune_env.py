@@ -172,6 +172,7 @@ class FilterRetuneEnv(TrackEnv):
     * v0, MOT15 in the mix (as FilterTune-v0; earlier arguments' episodes unchanged bit for bit): ``mix_weights``
       (sim, otb, otb_tracker, mot), ``mot_root`` with a positive mot weight; the sim part's ``sim_noise`` /
       ``scenario`` with OTB weight.
+    * v0, ``mot_holdout`` (as FilterTune-v0; default None: no change to any episode).
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

@@ -164,22 +164,23 @@ class FilterTuneEnv(TrackEnv):
 
     ``features``: the observation's feature set, ``"base"`` (default, 20 entries) or ``"msd"`` (21, Observation Space).
 
-    ``trackers`` (``otb_tracker``, ``mix``): the tracker names an episode's tracker is drawn from (each must
-    exist under the OTB root; None → ``(tracker,)``, the single-tracker env of before). The default tracker
-    split is ``bboxtune.envs.data.otb.TRACKER_SPLIT``: ``"test"`` = SiamRPN++, CFNet, STRUCK, MDNet (held out, never
-    trained on), ``"train"`` = the other 9. ``mix_weights``, a (sim, otb, otb_tracker) triple or a (sim, otb,
-    otb_tracker, mot) 4-tuple, default (1, 1, 1): each part's relative probability (reals >= 0, sum > 0; a triple
-    is mot weight 0 and draws the episodes it drew before the mot part existed, bit for bit; a 4-tuple whose mot
-    weight is 0 is stored as that triple). A part of weight 0 is never drawn and needs no data — OTB parts need
-    ``otb_root`` / $OTB_ROOT, the mot part ``mot_root`` / $MOT_ROOT (MOT15: the identities of ``split``, the
-    OTB split rule by sequence, ``bboxtune.envs.data.mot.split``). Each part draws with the settings it takes
-    (``bboxtune.envs.episodes.config.mix_part``): the sim settings and ``sim_noise`` / ``scenario`` only the sim part,
-    ``otb_speedup_max`` the OTB and mot parts, the detection errors the sim, otb and otb_tracker parts — never
-    the mot part, whose real detections keep their own misses. Arguments the source would not use are refused,
-    not ignored: ``trackers`` with another source (or with ``mix_weights[2] == 0``), ``mix_weights`` other than
-    the default without ``source="mix"``, ``mot_root`` without source ``mot`` or a positive mot weight
-    (``mix_weights[3]``), detection errors with a mix of the mot part alone. Observation and action spaces do
-    not depend on the source.
+    ``trackers`` (``otb_tracker``, ``mix``): the tracker names an episode's tracker is drawn from (each must exist
+    under the OTB root; None → ``(tracker,)``, the single-tracker env of before). The default tracker split is
+    ``bboxtune.envs.data.otb.TRACKER_SPLIT``: ``"test"`` = SiamRPN++, CFNet, STRUCK, MDNet (held out, never trained
+    on), ``"train"`` = the other 9. ``mix_weights``, a (sim, otb, otb_tracker) triple or a (sim, otb, otb_tracker,
+    mot) 4-tuple, default (1, 1, 1): each part's relative probability (reals >= 0, sum > 0; a triple is mot weight 0
+    and draws the episodes it drew before the mot part existed, bit for bit; a 4-tuple whose mot weight is 0 is
+    stored as that triple). A part of weight 0 is never drawn and needs no data — OTB parts need ``otb_root`` /
+    $OTB_ROOT, the mot part ``mot_root`` / $MOT_ROOT (MOT15: the identities of ``split``, the OTB split rule by
+    sequence, ``bboxtune.envs.data.mot.split``; source ``mot`` with ``mot_holdout=SEQUENCE``: a
+    leave-one-sequence-out fold, ``split="test"`` that sequence, train and val the others). Each part draws with the
+    settings it takes (``bboxtune.envs.episodes.config.mix_part``): the sim settings and ``sim_noise`` /
+    ``scenario`` only the sim part, ``otb_speedup_max`` the OTB and mot parts, the detection errors the sim, otb and
+    otb_tracker parts — never the mot part, whose real detections keep their own misses. Arguments the source would
+    not use are refused, not ignored: ``trackers`` with another source (or with ``mix_weights[2] == 0``),
+    ``mix_weights`` other than the default without ``source="mix"``, ``mot_root`` without source ``mot`` or a
+    positive mot weight (``mix_weights[3]``), detection errors with a mix of the mot part alone. Observation and
+    action spaces do not depend on the source.
 
     ``otb_speedup_max`` (OTB sources, ``mot``, the OTB and mot parts of a mix; default 1: off): on the **train split
     only**, each episode plays every k-th frame of its sequence, k uniform in [1, otb_speedup_max] and a random
@@ -267,6 +268,7 @@ class FilterTuneEnv(TrackEnv):
       scenario instead of 86 %; docs/results-sim.md).
     * v0, reseeding reads ahead (no change to any episode; ``bench_env.py`` [1b] ~1.75× → ~1.15×); a pinned reset with
       a ``seed`` restarts the unpinned sequence from it (before: the noise seeds of an earlier reseed's block).
+    * v0, ``mot_holdout`` (default None: no change to any episode): leave-one-sequence-out folds of source ``mot``.
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:

@@ -109,14 +109,17 @@ def methods(models: list[Path], pretrained: list[str],
     return out
 
 
-def summary_text(rows: list[dict[str, str]], split: str, n: int, sequences: list[str], command: str) -> str:
+def markdown_table(columns: list[str], rows: list[dict[str, str]]) -> list[str]:
+    """Markdown lines of ``rows`` (of :func:`bboxtune.agents.evaluation.mot_eval.paired_rows`) in ``columns``."""
+    return ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns),
+            *("| " + " | ".join(row[c] for c in columns) + " |" for row in rows)]
+
+
+def summary_text(rows: list[dict[str, str]], title: str, n: int, sequences: list[str], command: str) -> str:
     """summary.md: the table of :func:`bboxtune.agents.evaluation.mot_eval.paired_rows` and what it was measured on."""
-    columns = list(rows[0])
-    lines = [f"# Filters on MOT15 detection streams: split {split!r}", "",
+    lines = [f"# Filters on MOT15 detection streams: {title}", "",
              f"{n} identities of {', '.join(sequences)}; 95 % intervals resample identities "
-             f"({mot_eval.N_BOOT} resamples).", "", "```", command, "```", "",
-             "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-    lines += ["| " + " | ".join(row[c] for c in columns) + " |" for row in rows]
+             f"({mot_eval.N_BOOT} resamples).", "", "```", command, "```", "", *markdown_table(list(rows[0]), rows)]
     return "\n".join(lines) + "\n"
 
 
@@ -156,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     sequences = sorted({i.sequence for i in identities})
     write_text_atomic(args.out / "per_identity.csv", csv_text(header, table))
     write_text_atomic(args.out / "command.txt", command + "\n")
-    text = summary_text(rows, args.split, len(identities), sequences, command)
+    text = summary_text(rows, f"split {args.split!r}", len(identities), sequences, command)
     write_text_atomic(args.out / "summary.md", text)
     print(text, end="")
     return 0

@@ -110,13 +110,15 @@ def rule_method(backend: str) -> Method:
 
 
 def paired_rows(scores: dict[str, dict[str, np.ndarray]], references: Sequence[str], seed: int = 0,
-                n_boot: int = N_BOOT) -> list[dict[str, str]]:
+                n_boot: int = N_BOOT, clusters: Sequence[str] | None = None) -> list[dict[str, str]]:
     """One table row per method: mean IoU on detected frames, pooled IoU in gaps, log(RMSE_raw / RMSE), and the
-    paired differences to each of ``references`` (method names), with 95 % identity-bootstrap intervals.
+    paired differences to each of ``references`` (method names), with 95 % identity-bootstrap intervals (with
+    ``clusters``, one label per identity, e.g. its sequence: the clusters are resampled instead).
     Identities without scored detected frames are left out of the detected-frame columns (the same ones for
     every method)."""
     n = len(next(iter(scores.values()))["n_gap"])
-    idx = stats.bootstrap_indices(n, n_boot, seed)
+    idx = (stats.bootstrap_indices(n, n_boot, seed) if clusters is None
+           else stats.cluster_bootstrap_indices(clusters, n_boot, seed))
     ok = np.all([np.isfinite(s["iou_detected"]) for s in scores.values()], axis=0)
     raw_sq = scores["raw"]["sq_detected"]
 

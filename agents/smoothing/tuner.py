@@ -89,7 +89,8 @@ DEFAULT_PRETRAINED = "otb_tracker_kf_cmn"  # chosen on the val split (docs/smoot
 TAU_RANGE = (1e-3, 1.0)  # s, the envs' range of frame intervals
 MIN_FRAMES = 8  # the envs' shortest track
 MIN_MEASURED = 2  # a box scale and one difference
-SOURCE_ONLY = ("trackers", "mix_weights", "otb_speedup_max", "mot_root")  # env settings that EnvConfig refuses with source "sim"
+# env settings that EnvConfig refuses with source "sim"
+SOURCE_ONLY = ("trackers", "mix_weights", "otb_speedup_max", "mot_root", "mot_holdout")
 BACKEND_PARAMS = "backend_params"  # config.yml: back-end settings outside the tuner's action (module docstring)
 STD_WEIGHTS = tuple(k for k in ByteTrackKF.PER_TRACK if k not in GAP_DECAYS)  # bytetrack_kf's noise weights, in order
 

@@ -186,6 +186,18 @@ def split(identities: Iterable[MOTIdentity]) -> dict[str, tuple[MOTIdentity, ...
     return {part: tuple(i for i in items if part_of[i.sequence] == part) for part in ("train", "val", "test")}
 
 
+def holdout_split(identities: Iterable[MOTIdentity], holdout: str) -> dict[str, tuple[MOTIdentity, ...]]:
+    """One leave-one-sequence-out fold: "test" = the identities of sequence ``holdout``, "train" and "val" = those of
+    every other sequence (the fold's val part is its training sequences: there is no third part to select on).
+    ValueError naming the sequences if ``holdout`` is none of them."""
+    items = tuple(identities)
+    names = sorted({i.sequence for i in items})
+    if holdout not in names:
+        raise ValueError(f"mot_holdout={holdout!r} is not a sequence of the MOT data; allowed: {names}")
+    others = tuple(i for i in items if i.sequence != holdout)
+    return {"train": others, "val": others, "test": tuple(i for i in items if i.sequence == holdout)}
+
+
 @dataclass(frozen=True, eq=False)
 class DetectionStats:
     """Detection noise of identity episodes, measured on matched frames (see :func:`detection_stats`).

@@ -181,6 +181,9 @@ class EnvConfig:
     mix_weights: tuple[float, ...] = (1.0, 1.0, 1.0)
     # source "mot" or a mix with a positive mot weight: folder of the MOT15 data (bboxtune.envs.data.mot); None -> $MOT_ROOT
     mot_root: str | None = None
+    # source "mot": one sequence held out (leave-one-sequence-out folds, bboxtune.envs.data.mot.holdout_split): split
+    # "test" draws its identities, "train" and "val" those of every other sequence; None -> the split rule by sequence
+    mot_holdout: str | None = None
     otb_tau: float = 1 / 30  # s, OTB frame interval (30 fps); in [1e-3, 1]
     # OTB sources, train split only (augmentation for fast motion): each episode plays its sequence at a random frame
     # stride k in [1, otb_speedup_max] (bboxtune.envs.episodes.sources.OTBSource), so the object moves k times as far per frame
@@ -304,6 +307,10 @@ class EnvConfig:
         if not mix and self.mix_weights != (1.0, 1.0, 1.0):
             raise ValueError(f"mix_weights={self.mix_weights!r} with source={self.source!r}: allowed only with "
                              "source 'mix' (leave the default (1.0, 1.0, 1.0) otherwise)")
+        if self.mot_holdout is not None and (self.source != "mot" or not isinstance(self.mot_holdout, str)
+                                             or not self.mot_holdout):
+            raise ValueError(f"mot_holdout={self.mot_holdout!r} with source={self.source!r}: allowed only with source "
+                             "'mot', a sequence name (str)")
         if self.mot_root is not None and not (self.source == "mot" or (mix and self.mix_parts["mot"] > 0)):
             weights = f", mix_weights={self.mix_weights!r}" if mix else ""
             raise ValueError(f"mot_root={self.mot_root!r} with source={self.source!r}{weights}: allowed only with "

@@ -5,7 +5,8 @@ An episode runs from the identity's first to its last matched detection: ``y`` h
 (cx, cy, w, h) or a NaN row where none was matched (a detection gap, which the filter fills by prediction),
 ``truth`` the identity's ground-truth box or a NaN row where it has none (occlusion, a flag-0 row). τ = 1 / the
 sequence's frame rate (7–30 fps). The pool is the identities of the config's ``split`` (by sequence, the OTB
-rule: :func:`bboxtune.envs.data.mot.split`) that keep at least ``min_frames`` frames; an unpinned draw picks one uniformly
+rule: :func:`bboxtune.envs.data.mot.split`; with ``mot_holdout`` a leave-one-sequence-out fold,
+:func:`bboxtune.envs.data.mot.holdout_split`) that keep at least ``min_frames`` frames; an unpinned draw picks one uniformly
 from ``default_rng((noise_seed, 0))`` (the noise seed only chooses the identity: the stream itself is data). An
 identity is named ``"<sequence>/<id>"`` (``options={"sequence": "KITTI-13/7"}`` pins it).
 
@@ -84,7 +85,8 @@ class MOTSource(Source):
         self.cfg = cfg
         if identities is None:
             identities = _identities(mot.resolve_root(cfg.mot_root).resolve())
-        self._by_name = {identity_name(i): i for i in mot.split(identities)[cfg.split]}
+        parts = mot.split(identities) if cfg.mot_holdout is None else mot.holdout_split(identities, cfg.mot_holdout)
+        self._by_name = {identity_name(i): i for i in parts[cfg.split]}
         if not self._by_name:
             raise ValueError(f"no MOT identities in split {cfg.split!r} (sequences {sorted({i.sequence for i in identities})})")
         self._long_enough = tuple(self._by_name)

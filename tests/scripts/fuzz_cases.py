@@ -89,6 +89,7 @@ COMMANDS: dict[str, Command] = {
     "otb_eval": Command("otb_eval", ("evaluate",)),
     "otb_motion": Command("otb_motion", ("fit",)),
     "mot_eval": Command("mot_eval", ("mot_eval.score_method",)),
+    "mot_loso": Command("mot_loso", ("trained",), base=("--runs", "{out}/runs", "--out", "{out}")),
     "mot_fit": Command("mot_fit", ("noise_stats",)),
     "track_video": Command("track_video", ("detect",), base=("--synthetic", "--n-frames", "20"),
                            avoid=(("--n-frames", "100000"),),  # valid; the synthetic trajectories take about 6 s

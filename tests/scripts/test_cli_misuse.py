@@ -145,7 +145,7 @@ def test_help_prints_usage_and_exits_0(name, capsys):
 def test_every_script_is_covered():
     """A new script gets misuse cases here (or in its own test module, named in ELSEWHERE)."""
     elsewhere = {"train", "compare", "track_video", "otb_eval", "bench_filters", "video_table", "smooth", "mot_eval",
-                 "mot_fit", "track_mot"}  # their helpers' tests
+                 "mot_fit", "track_mot", "mot_loso"}  # their helpers' tests
     assert set(HELP) == set(CASES) | elsewhere
 
 

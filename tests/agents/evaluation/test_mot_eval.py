@@ -80,3 +80,7 @@ def test_paired_rows_reference_is_zero_against_itself_and_pools_gaps() -> None:
     pooled = scores["kf"]["iou_gap_sum"].sum() / scores["kf"]["n_gap"].sum()
     assert rows["kf"]["iou_gaps"].startswith(f"{pooled:.3f}")
     assert pooled > 0.5  # the KF predicts the straight-line motion through the gaps
+    # clusters: all-distinct labels are the identity bootstrap; two clusters of three give other intervals
+    assert mot_eval.paired_rows(scores, references=("raw",), n_boot=200, clusters=list("abcdef")) == list(rows.values())
+    by_pair = {r["method"]: r for r in mot_eval.paired_rows(scores, references=("raw",), n_boot=200, clusters=list("aaabbb"))}
+    assert by_pair["kf"]["iou_gaps"].startswith(f"{pooled:.3f}") and by_pair["kf"]["iou_gaps"] != rows["kf"]["iou_gaps"]

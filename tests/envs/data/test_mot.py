@@ -16,6 +16,7 @@ from bboxtune.envs.data.mot import (
     MIN_FRAMES,
     MOTIdentity,
     detection_stats,
+    holdout_split,
     load_identities,
     match_identities,
     resolve_root,
@@ -171,6 +172,17 @@ def test_split_uses_the_otb_rule_by_video():
     parts = {k: [i.sequence for i in v] for k, v in split(items).items()}
     assert parts == {"train": ["ETH-Pedcross2", "Venice-2"], "val": ["ADL-Rundle-6", "ADL-Rundle-8", "ETH-Bahnhof"],
                      "test": ["KITTI-13"]}
+
+
+def test_holdout_split_is_one_leave_one_sequence_out_fold():
+    items = [MOTIdentity(name, k, 1, np.ones((2, 4)), np.ones((2, 4)), np.ones(2), 0.1)
+             for name in ("ADL-Rundle-6", "KITTI-13", "Venice-2") for k in (1, 2)]
+    parts = {k: [(i.sequence, i.identity) for i in v] for k, v in holdout_split(items, "Venice-2").items()}
+    assert parts["test"] == [("Venice-2", 1), ("Venice-2", 2)]
+    assert parts["train"] == parts["val"] == [("ADL-Rundle-6", 1), ("ADL-Rundle-6", 2), ("KITTI-13", 1), ("KITTI-13", 2)]
+    with pytest.raises(ValueError, match=r"mot_holdout='Venice-3' is not a sequence of the MOT data; allowed: "
+                                         r"\['ADL-Rundle-6', 'KITTI-13', 'Venice-2'\]"):
+        holdout_split(items, "Venice-3")
 
 
 # --- detection statistics ---------------------------------------------------------------------------------------

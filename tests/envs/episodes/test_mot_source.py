@@ -80,6 +80,31 @@ def test_strided_episodes_play_lower_frame_rates_on_train_only() -> None:
     assert all("stride" not in test_source.draw(None, s).meta for s in range(10))
 
 
+def test_holdout_fold_trains_on_the_other_sequences_at_strides() -> None:
+    # the split rule's test sequence held out: the fold trains on the rest; its own test part is the held-out one
+    cfg = EnvConfig(source="mot", mot_holdout=TEST, otb_speedup_max=3)
+    train = MOTSource(cfg, identities=POOL)
+    assert train.sequences == ("Venice-2/1", "Venice-2/2")
+    assert MOTSource(EnvConfig(source="mot", mot_holdout=TEST, split="val"), identities=POOL).sequences == train.sequences
+    held_out = MOTSource(EnvConfig(source="mot", mot_holdout=TEST, split="test", otb_speedup_max=3), identities=POOL)
+    assert held_out.sequences == ("KITTI-13/3",)
+    assert {train.draw("Venice-2/1", s).meta.get("stride", 1) for s in range(40)} == {1, 2, 3}
+    # a train-rule sequence held out is the fold's test part
+    assert MOTSource(EnvConfig(source="mot", mot_holdout=TRAIN, split="test"), identities=POOL).sequences == \
+        ("Venice-2/1", "Venice-2/2")
+    assert all("stride" not in held_out.draw(None, s).meta for s in range(10))
+    with pytest.raises(ValueError, match=r"mot_holdout='KITTI-14' is not a sequence of the MOT data; allowed: "
+                                         r"\['KITTI-13', 'Venice-2'\]"):
+        MOTSource(EnvConfig(source="mot", mot_holdout="KITTI-14"), identities=POOL)
+
+
+@pytest.mark.parametrize("kwargs", [{"mot_holdout": "KITTI-13"}, {"source": "mix", "mot_holdout": "KITTI-13"},
+                                    {"source": "mot", "mot_holdout": ""}, {"source": "mot", "mot_holdout": 13}])
+def test_config_refuses_a_holdout_it_would_not_use(kwargs) -> None:
+    with pytest.raises(ValueError, match=r"mot_holdout=.* allowed only with source 'mot', a sequence name"):
+        EnvConfig(**kwargs)
+
+
 def test_config_refuses_mot_root_with_another_source() -> None:
     with pytest.raises(ValueError, match="mot_root='x' with source='sim'"):
         EnvConfig(mot_root="x")
