@@ -170,6 +170,9 @@ def main(argv: list[str] | None = None) -> int:
                              "settings are reused)")
     parser.add_argument("--out", required=True, type=out_dir, help="output folder (created)")
     args = parser.parse_args(argv)
+    for flag, values in (("--folds", args.folds or []), ("--backend", args.backend or []), ("--seeds", args.seeds)):
+        if len(set(values)) < len(values):
+            parser.error(f"argument {flag}: {values} repeats a value; give each once")
     if outputs_taken(args.out, OUTPUTS):
         return 2
     backends = args.backend or list(DEFAULT_BACKENDS)

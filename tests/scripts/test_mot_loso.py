@@ -77,6 +77,17 @@ def test_refuses_an_unknown_fold_before_training(tmp_path: Path, capsys: pytest.
     assert not (tmp_path / "runs").exists() and not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize(("flag", "values"), [("--folds", ["KITTI-13", "KITTI-13"]), ("--seeds", ["0", "1", "0"]),
+                                              ("--backend", ["kf_cmn", "kf_cmn"])])
+def test_refuses_a_repeated_value(tmp_path: Path, capsys: pytest.CaptureFixture[str], flag: str, values: list[str]) -> None:
+    args = [flag, *values] if flag != "--backend" else [a for v in values for a in (flag, v)]
+    with pytest.raises(SystemExit) as stop:
+        mot_loso.main([*args, "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and f"argument {flag}: " in err and "repeats a value" in err and err.count("\n") == 1
+    assert not (tmp_path / "runs").exists() and not (tmp_path / "out").exists()
+
+
 def test_refuses_a_used_output_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "folds.csv").write_text("mine")
     assert mot_loso.main(["--runs", str(tmp_path / "runs"), "--out", str(tmp_path)]) == 2
