@@ -10,7 +10,8 @@ The fixed split tests on one sequence (KITTI-13: 15 identities); this protocol t
    --timesteps T --n-envs 16 --env-kwargs otb_speedup_max=3 mot_holdout=<fold>`` (the recipe of the fixed split's
    tuners, ``docs/results/mot15/commands.txt``) into ``--runs``/<fold>/<backend>_s<seed>; the fold's other sequences
    are its training identities (``bboxtune.envs.data.mot.holdout_split``). The final model is scored (nothing is
-   selected on the held-out sequence). A run folder that already holds a finished run of the same settings is reused.
+   selected on the held-out sequence). A run folder that already holds a finished run of the same settings is reused;
+   one that holds anything else (other settings, an unfinished run) is refused.
 2. Select, on the training identities only (every frame): ByteTrack's gap policy (:data:`GAP_GRID`, the grid of
    ``docs/mot15.md``'s val selection) with the highest pooled gap IoU, once for the stock weights and once for each
    ``bytetrack_kf`` tuner (ties: the first in grid order, which starts with (1, 1) = no policy).
@@ -90,7 +91,10 @@ def train_argv(backend: str, seed: int, fold: str, timesteps: int, mot_root: Pat
 
 
 def trained(argv: list[str], run_dir: Path) -> Path:
-    """The run of ``argv`` in ``run_dir``: reused if it holds a finished run of the same settings, else trained."""
+    """The run of ``argv`` in ``run_dir``: reused if it holds a finished run of the same settings, else trained
+    (ValueError if it holds anything else)."""
+    if run_dir.is_dir() and any(run_dir.iterdir()) and not (run_dir / "model.zip").exists():
+        raise ValueError(f"{run_dir}: holds an unfinished run (no model.zip); remove it or give another --runs folder")
     if (run_dir / "model.zip").exists():
         expected = train.new_config(train.parse_args(argv))
         with open(run_dir / train.CONFIG) as fh:

@@ -69,6 +69,17 @@ def test_refuses_a_run_folder_of_other_settings(tmp_path: Path, capsys: pytest.C
 
 
 @needs_mot
+def test_refuses_an_unfinished_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run_dir = tmp_path / "runs" / "KITTI-13" / "bytetrack_kf_s0"
+    run_dir.mkdir(parents=True)
+    (run_dir / "config.yml").write_text("x")  # an interrupted run
+    assert mot_loso.main([*FOLD, "--timesteps", "64", "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err == f"error: {run_dir}: holds an unfinished run (no model.zip); remove it or give another --runs folder\n"
+    assert (run_dir / "config.yml").read_text() == "x" and not (tmp_path / "o").exists()
+
+
+@needs_mot
 def test_refuses_an_unknown_fold_before_training(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     argv = ["--mot-root", str(MOT_ROOT), "--folds", "KITTI-13", "KITTI-14", "--runs", str(tmp_path / "runs"),
             "--out", str(tmp_path / "out")]
