@@ -35,7 +35,6 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from bboxtune.agents.cli import (
     ArgumentParser,
@@ -53,6 +52,7 @@ from bboxtune.agents.commands.mot_eval import REFERENCES, gap_policy, markdown_t
 from bboxtune.agents.evaluation import mot_eval
 from bboxtune.agents.evaluation.video_tables import csv_text
 from bboxtune.agents.smoothing.tuner import Tuner
+from bboxtune.agents.training.runs import load_config
 from bboxtune.envs.data import mot
 from bboxtune.envs.data.atomic_files import write_text_atomic
 from bboxtune.envs.episodes.actions import BACKENDS
@@ -97,8 +97,7 @@ def trained(argv: list[str], run_dir: Path) -> Path:
         raise ValueError(f"{run_dir}: holds an unfinished run (no model.zip); remove it or give another --runs folder")
     if (run_dir / "model.zip").exists():
         expected = train.new_config(train.parse_args(argv))
-        with open(run_dir / train.CONFIG) as fh:
-            found = yaml.safe_load(fh)
+        found = load_config(run_dir)
         keys = ("env_kwargs", "seed", "total_timesteps", "algo")
         if {k: found.get(k) for k in keys} != {k: expected[k] for k in keys}:
             raise ValueError(f"{run_dir}: holds a run of other settings ({train.CONFIG}); give another --runs folder")

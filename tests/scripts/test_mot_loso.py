@@ -66,6 +66,11 @@ def test_refuses_a_run_folder_of_other_settings(tmp_path: Path, capsys: pytest.C
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "bytetrack_kf_s0: holds a run of other settings" in err and err.count("\n") == 1
     assert not (tmp_path / "b").exists()
+    (runs / "KITTI-13" / "bytetrack_kf_s0" / "config.yml").write_text("seed: [unclosed\n")  # a damaged finished run
+    assert mot_loso.main([*FOLD, "--timesteps", "64", "--runs", str(runs), "--out", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "bytetrack_kf_s0/config.yml" in err and err.count("\n") == 1
+    assert not (tmp_path / "c").exists()
 
 
 @needs_mot
