@@ -8,6 +8,7 @@ from typing import Any, cast
 import numpy as np
 from gymnasium.utils import seeding
 
+from bboxtune.envs.episodes.actions import Nominal
 from bboxtune.envs.episodes.episode import Episode
 from bboxtune.envs.episodes.features import measurement_features
 from bboxtune.envs.episodes.scoring import (
@@ -335,8 +336,8 @@ class FilterTuneEnv(TrackEnv):
         """Each episode with its fixed-rule run (parameters, estimate, scores, and the ``reference`` scores the
         reward is measured against: the rule's or the raw measurements', ``reward_baseline``) and its observation — batched
         over episodes of equal length (the rule's filter runs, its scores and the features)."""
-        rule_params = [self.rule_params(ep) for ep in episodes]
-        stacked = {k: np.concatenate([p[k] for p in rule_params]) for k in rule_params[0]}
+        stacked = Nominal.stacked([ep.nominal for ep in episodes])  # the rule's parameters, a row per episode
+        rule_params = [{k: v[r:r + 1] for k, v in stacked.items()} for r in range(len(episodes))]  # each rule_params(ep)
         estimates = run_tracks(self.config.backend, [ep.y for ep in episodes], [ep.tau for ep in episodes], stacked)
         truths = [ep.truth for ep in episodes]
         scores = score_tracks(estimates, truths)

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
@@ -99,8 +100,9 @@ class Scenario:
             raise ValueError(f"n_frames={self.n_frames!r} is out of range: allowed integers >= 2")
         if not (math.isfinite(self.delta) and self.tau + self.delta > 0):
             raise ValueError(f"delta={self.delta!r} is out of range: allowed finite with tau + delta > 0")
-        x0 = self.initial_state.tolist()  # Python floats: faster checks of a few values than numpy's
-        if np.shape(x0) != (self.K,) or not all(math.isfinite(v) for v in x0):
+        initial_state = self.initial_state
+        x0 = initial_state.tolist()  # Python floats: faster checks of a few values than numpy's
+        if initial_state.shape != (self.K,) or not all(math.isfinite(v) for v in x0):
             raise ValueError(f"x0={self.x0!r} must be {self.K} finite values [positions…, velocities…]")
         lo, hi = self.size_bounds
         if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
@@ -338,22 +340,32 @@ class ScenarioRanges:
                  motion=self.motion)
         Scenario(psi=self.psi[0], tau=self.tau[1], delta=self.delta[1], n_frames=int(self.n_frames[0]))
 
+    @cached_property
+    def _draw_plan(self) -> tuple[list[tuple[float, float, bool]], int]:
+        """(low, high, log-uniform) of the initial sizes, ψ, σ_w, σ_ξ and τ in draw order (logs of log-uniform
+        ranges), and how many of them are not a point."""
+        fields = [*[(self.size, True)] * (2 if self.ndim == 4 else 0), (self.psi, False), (self.sigma_w, True),
+                  (self.sigma_xi, True), (self.tau, False)]
+        bounds: list[tuple[float, float, bool]] = [(math.log(lo), math.log(hi), log) if log else (lo, hi, log)
+                                                   for (lo, hi), log in fields]
+        return bounds, sum(hi > lo for lo, hi, _ in bounds)
+
     def sample(self, rng: np.random.Generator) -> Scenario:
         """Draw one scenario (the x0 of a box puts a box of random size at rest at (320, 240)); "otb" motion
         draws its levels after the other fields, so the "cv" fields of a seed are the same under both.
 
         The uniforms of the initial sizes, ψ, σ_w, σ_ξ and τ — one for each whose range is not a point, in that
         order — come from one ``rng.random`` call: the same numbers, and the same values, as a ``rng.uniform(low,
-        high)`` each (low + (high − low)·u)."""
-        fields = [*[(self.size, True)] * (2 if self.ndim == 4 else 0), (self.psi, False), (self.sigma_w, True),
-                  (self.sigma_xi, True), (self.tau, False)]  # (range, log-uniform)
-        bounds = [(math.log(lo), math.log(hi)) if log else (lo, hi) for (lo, hi), log in fields]
-        u = iter(rng.random(sum(hi > lo for lo, hi in bounds)).tolist())
-        drawn = [lo + (hi - lo) * next(u) if hi > lo else float(lo) for lo, hi in bounds]  # in field order
-        *size, psi, sigma_w, sigma_xi, tau = [math.exp(v) if log else v for v, (_, log) in zip(drawn, fields, strict=True)]
+        high)`` each (low + (high − low)·u). A point range of ``n_frames`` draws nothing, as ``rng.integers`` of
+        one value does not."""
+        fields, n_random = self._draw_plan
+        u = iter(rng.random(n_random).tolist())
+        drawn = [lo + (hi - lo) * next(u) if hi > lo else float(lo) for lo, hi, _ in fields]  # in field order
+        *size, psi, sigma_w, sigma_xi, tau = [math.exp(v) if log else v for v, (_, _, log) in zip(drawn, fields, strict=True)]
+        low, high = self.n_frames
         scenario = Scenario(
             psi=psi, sigma_w=sigma_w, sigma_xi=sigma_xi, tau=tau,
-            n_frames=int(rng.integers(self.n_frames[0], self.n_frames[1], endpoint=True)),
+            n_frames=int(rng.integers(low, high, endpoint=True)) if high > low else int(low),
             ndim=self.ndim,
             delta=_uniform(rng, self.delta),
             x0=(320.0, 240.0, *size, 0.0, 0.0, 0.0, 0.0) if size else None,

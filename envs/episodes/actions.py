@@ -108,6 +108,12 @@ class Nominal:
         """The parameters as one candidate of a filter run: {name: array (1,)} for every name in ``TUNABLE``."""
         return {k: np.array([getattr(self, k)]) for k in TUNABLE}
 
+    @staticmethod
+    def stacked(nominals: list[Nominal]) -> dict[str, np.ndarray]:
+        """Many episodes' parameters as the candidates of one filter run: {name: array (n,)}, row i
+        ``nominals[i].as_params()``."""
+        return {k: np.array([getattr(n, k) for n in nominals]) for k in TUNABLE}
+
 
 @dataclass(frozen=True)
 class ActionMap:

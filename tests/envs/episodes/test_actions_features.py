@@ -177,3 +177,13 @@ def test_nominal_of_the_rule_and_as_params() -> None:
     assert sorted(params) == sorted(TUNABLE) and all(v.shape == (1,) for v in params.values())
     np.testing.assert_array_equal(ActionMap(tune=TUNABLE, K=2).to_params(
         ActionMap(tune=TUNABLE, K=2).to_actions(params, nominal), nominal)["horizon"], params["horizon"])
+
+
+def test_stacked_nominals_are_the_rows_of_as_params() -> None:
+    nominals = [NOMINAL, Nominal.of_rule(4.0, 50.0, 0.05, 0.6, horizon_max=400), Nominal(1.5, 3.0, 0.25, 7)]
+    stacked = Nominal.stacked(nominals)
+    assert sorted(stacked) == sorted(TUNABLE)
+    for k in TUNABLE:
+        rows = np.concatenate([n.as_params()[k] for n in nominals])
+        np.testing.assert_array_equal(stacked[k], rows)
+        assert stacked[k].dtype == rows.dtype
