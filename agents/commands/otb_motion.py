@@ -22,8 +22,9 @@ from scipy.signal import welch
 from bboxtune.agents.cli import ArgumentParser, command, existing_dir, int_range, nonnegative_int, out_dir
 from bboxtune.envs.data.atomic_files import write_text_atomic
 from bboxtune.envs.data.otb import OTBDataset, split
+from bboxtune.envs.data.scenario_ranges import ScenarioRanges
 from bboxtune.envs.data.sim_motion import OTBMotion
-from bboxtune.envs.data.simulate import ScenarioRanges, simulate_each
+from bboxtune.envs.data.simulate import simulate_each
 
 TAU = 1 / 30  # s, OTB frame interval
 LAGS = (1, 2, 3, 5, 10, 20, 40)  # frames, autocorrelation table

@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from bboxtune.envs.data.simulate import Scenario, Track, assemble, initial_conditions, log_uniform
+from bboxtune.envs.data.scenario_ranges import log_uniform
+from bboxtune.envs.data.simulate import Scenario, Track, assemble, initial_conditions
 
 
 @dataclass(frozen=True)

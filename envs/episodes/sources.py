@@ -38,9 +38,10 @@ import numpy as np
 
 from bboxtune.envs.data.boxes import cxcywh_to_xywh
 from bboxtune.envs.data.otb import OTBDataset, replay_synthetic, replay_tracker, split
+from bboxtune.envs.data.scenario_ranges import ScenarioRanges
 from bboxtune.envs.data.sim_detections import DetectionModel
 from bboxtune.envs.data.sim_regimes import simulate_nonstationary
-from bboxtune.envs.data.simulate import Scenario, ScenarioRanges, Track, simulate_each
+from bboxtune.envs.data.simulate import Scenario, Track, simulate_each
 from bboxtune.envs.episodes.actions import K_AXIS, Nominal
 from bboxtune.envs.episodes.config import MIX_SOURCES, EnvConfig, mix_part
 from bboxtune.envs.episodes.episode import Episode, Source, rule_nominal

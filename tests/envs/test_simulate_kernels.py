@@ -11,7 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bboxtune.envs.data import simulate
-from bboxtune.envs.data.simulate import Scenario, ScenarioRanges
+from bboxtune.envs.data.scenario_ranges import ScenarioRanges
+from bboxtune.envs.data.simulate import Scenario
 from bboxtune.filters import jit
 from tests.kernel_modes import both
 

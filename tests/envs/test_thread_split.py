@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bboxtune.envs.data.simulate import ScenarioRanges, simulate_each
+from bboxtune.envs.data.scenario_ranges import ScenarioRanges
+from bboxtune.envs.data.simulate import simulate_each
 from bboxtune.envs.episodes.actions import BACKENDS
 from bboxtune.envs.episodes.features import measurement_features
 from bboxtune.envs.episodes.scoring import run_tracks, score_tracks

@@ -444,7 +444,8 @@ def test_scores_with_one_truth_per_row_equal_separate_calls() -> None:
 
 @pytest.mark.parametrize("backend", ["ufir_cmn", "oufir", "kf_cmn"])
 def test_run_tracks_equals_each_track_alone(backend: str) -> None:
-    from bboxtune.envs.data.simulate import ScenarioRanges, simulate
+    from bboxtune.envs.data.scenario_ranges import ScenarioRanges
+    from bboxtune.envs.data.simulate import simulate
     from bboxtune.envs.episodes.scoring import run_positions, run_tracks
 
     rng = np.random.default_rng(2)

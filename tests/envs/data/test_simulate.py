@@ -6,8 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from bboxtune.envs.data.scenario_ranges import ScenarioRanges
 from bboxtune.envs.data.sim_motion import OTB_MOTION, reflect
-from bboxtune.envs.data.simulate import PRESETS, Scenario, ScenarioRanges, simulate, simulate_each
+from bboxtune.envs.data.simulate import PRESETS, Scenario, simulate, simulate_each
 
 
 def _bounce(x: float, low: float, high: float) -> tuple[float, float]:

@@ -8,8 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from bboxtune.envs.data.scenario_ranges import ScenarioRanges
 from bboxtune.envs.data.sim_motion import OTB_MOTION, OTBMotion
-from bboxtune.envs.data.simulate import Scenario, ScenarioRanges, simulate, simulate_each
+from bboxtune.envs.data.simulate import Scenario, simulate, simulate_each
 from bboxtune.envs.episodes.config import EnvConfig
 from bboxtune.envs.episodes.sources import SimSource
 
