@@ -46,13 +46,12 @@ from bboxtune.filters.kalman_core import (
     FramePrior,
     StepTables,
     channel_start,
-    check_prior,
     filter_channels,
     frame_kinds,
     plain_tables,
 )
 from bboxtune.filters.model import StateSpaceModel
-from bboxtune.filters.validation import check_sigma
+from bboxtune.filters.validation import check_prior, check_sigma
 
 
 class KF(FramePrior, Filter):

@@ -81,14 +81,13 @@ from bboxtune.filters.kalman_core import (
     FramePrior,
     StepTables,
     channel_start,
-    check_prior,
     filter_channels,
     frame_kinds,
     plain_tables,
 )
 from bboxtune.filters.kf import TABLES, axis_matrices
 from bboxtune.filters.model import StateSpaceModel
-from bboxtune.filters.validation import check_psi, check_sigma
+from bboxtune.filters.validation import check_prior, check_psi, check_sigma
 
 
 class KFCMN(FramePrior, Filter):

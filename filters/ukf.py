@@ -79,12 +79,11 @@ from bboxtune.filters.kalman_core import (
     VELOCITY_PRIOR_SCALE,
     WAIT,
     channel_start,
-    check_prior,
     filter_channels,
     frame_kinds,
 )
 from bboxtune.filters.model import StateSpaceModel
-from bboxtune.filters.validation import check_range, check_sigma
+from bboxtune.filters.validation import check_prior, check_range, check_sigma
 
 SCALING_RANGES = {"alpha": (1e-4, 1e4, False), "beta": (0.0, 1e4, False), "kappa": (-2.0, 1e4, True)}  # open low
 

@@ -40,6 +40,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from bboxtune.filters.blocks import split_covariance
+
 SIGMA_RANGE = (1e-30, 1e30)  # any noise standard deviation (units, units/s², units/s)
 TAU_RANGE = (1e-6, 1e6)  # s, sampling interval
 PSI_MAX = 0.99  # CMN coloredness
@@ -216,3 +218,32 @@ def broadcast_params(params: dict[str, np.ndarray], n_tracks: int, batched: bool
         else:
             out[name] = np.full(n_tracks, arr, dtype=arr.dtype)
     return out
+
+
+def check_prior(x0: object, P0: object, K: int, M: int, sigma_v: np.ndarray,
+                tau: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Validate the full-model prior: ``x0`` None or finite (K,) with entries within ±``VALUE_MAX``; ``P0`` None or
+    symmetric positive semi-definite (K, K) with entries within ±``VARIANCE_MAX`` that does not couple different
+    coordinates and whose per-coordinate blocks, in frame units, have eigenvalues <= ``PRIOR_MAX`` × every track's
+    ``sigma_v``² (the module docstring's ranges; the model's interval ``tau``): the Kalman back ends' prior."""
+    x = None
+    if x0 is not None:
+        x = numeric("x0", x0, f"None or a finite array of shape ({K},) with |x0| <= {VALUE_MAX:g}")
+        if x.shape != (K,) or not np.all(np.abs(x) <= VALUE_MAX):
+            raise ValueError(f"x0={x0!r} (shape {x.shape}) is invalid: allowed None or a finite array of shape ({K},) "
+                             f"with |x0| <= {VALUE_MAX:g}")
+    P = None
+    if P0 is not None:
+        P = numeric("P0", P0, f"None or a finite array of shape ({K}, {K}) with |P0| <= {VARIANCE_MAX:g}")
+        if P.shape != (K, K) or not np.all(np.abs(P) <= VARIANCE_MAX):
+            raise ValueError(f"P0 has shape {P.shape} (max |P0| = {np.max(np.abs(P), initial=0):.3g}): allowed None or "
+                             f"a finite array of shape ({K}, {K}) with |P0| <= {VARIANCE_MAX:g}")
+        scale = np.max(np.abs(P))
+        if np.max(np.abs(P - P.T)) > 1e-12 * scale:
+            raise ValueError(f"P0 is not symmetric (max |P0 − P0ᵀ| = {np.max(np.abs(P - P.T)):.3g}); allowed: "
+                             "a symmetric positive semi-definite matrix")
+        low = np.linalg.eigvalsh(P).min()
+        if low < -1e-12 * scale:
+            raise ValueError(f"P0 has eigenvalue {low:.3g} < 0; allowed: a symmetric positive semi-definite matrix")
+        check_prior_scale(split_covariance(P, M), sigma_v, tau)
+    return x, P
